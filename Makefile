@@ -1,0 +1,37 @@
+# cagekit: the two commands of the README are `make demo` and `make test`.
+# Both create (once) and reuse the virtual environment in .venv.
+PYTHON ?= python3.11
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+
+.PHONY: demo test test-slow lint bench venv clean
+
+$(STAMP): setup.cfg pyproject.toml
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install -q -e '.[dev]'
+	touch $(STAMP)
+
+venv: $(STAMP)
+
+demo: $(STAMP)
+	mkdir -p out
+	$(BIN)/cagekit apply data/example/shape.obj data/example/cage.obj data/example/cage_deformed.obj -o out/demo_deformed.obj
+	$(BIN)/cagekit render data/example/shape.obj out/demo_deformed.obj --cage data/example/cage.obj --cage data/example/cage_deformed.obj -o out/demo.png
+	@echo "wrote out/demo_deformed.obj and out/demo.png"
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q -n 2 tests
+
+test-slow: $(STAMP)
+	$(BIN)/python -m pytest -q -m slow tests
+
+lint: $(STAMP)
+	$(BIN)/ruff check cagekit apps tests benchmarks data
+
+bench: $(STAMP)
+	$(BIN)/pip install -q -e '.[dev,bench]'
+	$(BIN)/python benchmarks/bench_mvc.py
+
+clean:
+	rm -rf out .pytest_cache build *.egg-info

@@ -1,0 +1,42 @@
+"""Exceptions raised by cagekit.
+
+Every problem caused by the user's input (a file, an array, a cage) raises a subclass of
+:class:`InputError`. The message is one line that names the file (when there is one) and the
+problem, so the command line can print it as is and exit with status 2.
+"""
+
+from __future__ import annotations
+
+import os
+
+__all__ = ["InputError", "MeshFileError", "LandmarkFileError", "CageError"]
+
+
+class InputError(ValueError):
+    """Bad user input: a file that cannot be read, an array with NaN, an invalid cage.
+
+    Parameters
+    ----------
+    message : str
+        What is wrong, in one line.
+    path : str or os.PathLike, optional
+        The file the problem was found in; it is prefixed to the message.
+    """
+
+    def __init__(self, message: str, path: str | os.PathLike | None = None):
+        self.path = None if path is None else os.fspath(path)
+        self.problem = message
+        text = message if self.path is None else f"{self.path}: {message}"
+        super().__init__(text)
+
+
+class MeshFileError(InputError):
+    """A mesh or point-cloud file is missing, empty, unparsable or holds invalid data."""
+
+
+class LandmarkFileError(InputError):
+    """A landmark file is missing, empty, unparsable or holds invalid data."""
+
+
+class CageError(InputError):
+    """A cage is not a closed, 2-manifold, consistently oriented triangle mesh."""
