@@ -1,0 +1,485 @@
+"""The ``cagekit`` command line (click).
+
+Parsing and error handling only; the work is done by the library (:mod:`cagekit.io`,
+:mod:`cagekit.coords`, :mod:`cagekit.cage`, :mod:`cagekit.metrics`,
+:mod:`cagekit.render`), imported lazily so that ``--help`` stays fast.
+
+Rules shared by every command (DESIGN.md, "Command line"):
+
+- exit status 0 on success;
+- bad input (a :class:`cagekit.errors.InputError`, or a usage error) exits with status 2
+  and prints exactly one line on stderr that names the file and the problem; the
+  traceback is shown only with ``--debug`` (accepted before or after the command name);
+- other expected failures (an ``OSError`` while writing, say) print one line and exit 1;
+- an output that resolves to one of the inputs is refused (status 2) before any work;
+- outputs are written atomically by the library (temporary file, then rename);
+- ``--json`` prints one JSON object on stdout and nothing else there;
+- long work shows a progress bar on stderr, only when stderr is a terminal.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+import time
+import traceback
+
+import click
+
+from cagekit import __version__
+from cagekit.errors import InputError
+
+__all__ = ["main"]
+
+#: points bound per step when a progress bar is shown
+_BIND_CHUNK = 20_000
+
+
+# ----------------------------------------------------------------------- error handling
+
+
+def _one_line(text: str) -> str:
+    """Collapse any whitespace (newlines included) so a message fits on one line."""
+    return " ".join(str(text).split())
+
+
+def _debug_requested(args) -> bool:
+    return "--debug" in args or os.environ.get("CAGEKIT_DEBUG", "") not in ("", "0")
+
+
+class _Group(click.Group):
+    """A click group whose errors are one line on stderr, with fixed exit statuses."""
+
+    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True,
+             **extra):
+        """Run the command line; exit with 0, 1 (failure) or 2 (bad input or usage)."""
+        args = list(sys.argv[1:] if args is None else args)
+        _CURRENT.clear()
+        debug = _debug_requested(args)
+        prog = prog_name or "cagekit"
+        where = prog
+        try:
+            try:
+                rv = super().main(args, prog_name=prog, complete_var=complete_var,
+                                  standalone_mode=False, **extra)
+            except click.exceptions.NoArgsIsHelpError as exc:
+                click.echo(exc.ctx.get_help())
+                rv = 0
+            code = rv if isinstance(rv, int) else 0
+        except click.UsageError as exc:
+            if exc.ctx is not None:
+                where = exc.ctx.command_path
+            hint = f" (see '{where} --help')"
+            error, code, message = exc, exc.exit_code, f"{exc.format_message()}{hint}"
+        except click.Abort as exc:
+            error, code, message = exc, 130, "aborted"
+        except click.ClickException as exc:
+            error, code, message = exc, exc.exit_code, exc.format_message()
+        except InputError as exc:
+            error, code, message = exc, 2, str(exc)
+        except OSError as exc:
+            error, code, message = exc, 1, _os_error_message(exc)
+        except MemoryError as exc:
+            error, code, message = exc, 1, "out of memory"
+        except KeyboardInterrupt as exc:
+            error, code, message = exc, 130, "interrupted"
+        except Exception as exc:  # noqa: BLE001  (a bug: one line, pointing at --debug)
+            error, code = exc, 1
+            message = f"internal error: {type(exc).__name__}: {exc}"
+            if not debug:
+                message += " (run with --debug for the traceback)"
+        else:
+            if standalone_mode:
+                sys.exit(code)
+            return code
+        if debug:
+            traceback.print_exception(error, file=sys.stderr)
+        where = _CURRENT.get("command", where)
+        click.echo(f"{where}: error: {_one_line(message)}", err=True)
+        if standalone_mode:
+            sys.exit(code)
+        return code
+
+
+def _os_error_message(exc: OSError) -> str:
+    """``path: problem`` for an OSError, when it carries a file name."""
+    if exc.filename is not None:
+        problem = exc.strerror or str(exc)
+        return f"{os.fsdecode(exc.filename)}: {problem}"
+    return str(exc)
+
+
+#: the running command's name, for error lines ("cagekit apply: error: ...")
+_CURRENT: dict[str, str] = {}
+
+
+def _start(ctx: click.Context) -> None:
+    _CURRENT["command"] = ctx.command_path
+
+
+# ---------------------------------------------------------------------------- helpers
+
+
+def _same_file(a: str, b: str) -> bool:
+    """True if paths ``a`` and ``b`` name the same file (following links)."""
+    try:
+        if os.path.exists(a) and os.path.exists(b):
+            return os.path.samefile(a, b)
+    except OSError:
+        pass
+    return os.path.realpath(a) == os.path.realpath(b)
+
+
+def _check_output(out: str, inputs, extensions=None) -> None:
+    """Refuse (InputError) an output that is an input, a folder, or in a missing folder."""
+    for path in inputs:
+        if path is not None and _same_file(out, path):
+            raise InputError(f"refusing to overwrite the input file {path}; choose another "
+                             "output path", out)
+    if os.path.isdir(out):
+        raise InputError("is a folder; give an output file name", out)
+    folder = os.path.dirname(os.path.abspath(out))
+    if not os.path.isdir(folder):
+        raise InputError(f"output folder {folder} does not exist", out)
+    if extensions is not None:
+        ext = os.path.splitext(out)[1].lower()
+        if ext not in extensions:
+            raise InputError(f"unknown output format {ext or '(no extension)'!r}; "
+                             f"use one of {', '.join(sorted(extensions))}", out)
+
+
+def _shape_writer(out: str, has_faces: bool):
+    """The :mod:`cagekit.io` function that writes ``out``, checked before any work.
+
+    A mesh goes to ``save_mesh`` when the extension is a mesh format, else to
+    ``save_points`` (its vertices only) when it is a point-cloud format (``.xyz``,
+    ``.npy``...); a point cloud goes to ``save_points``. Anything else is an InputError.
+    Returns ``writer(path, V, F)``.
+    """
+    from cagekit import io
+
+    ext = os.path.splitext(out)[1].lower()
+    mesh_exts = set(io.SUPPORTED_MESH_EXTENSIONS) - {".gltf"}  # save_mesh writes no GLTF
+    point_exts = set(io.SUPPORTED_POINT_EXTENSIONS)
+    if has_faces and ext in mesh_exts:
+        return io.save_mesh
+    if ext in point_exts:
+        return lambda path, V, F: io.save_points(path, V)
+    allowed = (mesh_exts | point_exts) if has_faces else point_exts
+    kind = "a mesh" if has_faces else "a point cloud"
+    raise InputError(f"cannot write {kind} as {ext or '(no extension)'!r}; use one of "
+                     f"{', '.join(sorted(allowed))}", out)
+
+
+def _progress_enabled() -> bool:
+    try:
+        return sys.stderr.isatty()
+    except (AttributeError, ValueError):
+        return False
+
+
+def _terminal_size() -> tuple[int, int]:
+    """(columns, lines) of the terminal on stderr, (80, 24) where it reports none.
+
+    A pseudo-terminal with no size set (``script``, CI runners) reports 0 x 0, and tqdm
+    then draws nothing at all.
+    """
+    try:
+        size = os.get_terminal_size(sys.stderr.fileno())
+        columns, lines = size.columns, size.lines
+    except (OSError, ValueError, AttributeError):
+        columns, lines = 0, 0
+    return (columns if columns > 0 else 80), (lines if lines > 0 else 24)
+
+
+def _bind(points, cage_v, cage_f, method: str):
+    """Bind points to a cage; on a terminal, in chunks behind a progress bar.
+
+    Returns a function mapping new cage vertices ``(k, 3)`` to deformed points ``(n, 3)``.
+    The coordinates of a point do not depend on the other points, so chunking changes
+    nothing but the bar.
+    """
+    import numpy as np
+
+    from cagekit.coords import bind
+
+    if not _progress_enabled() or len(points) <= _BIND_CHUNK:
+        return bind(points, cage_v, cage_f, method=method).deform
+    from tqdm import tqdm
+
+    columns, lines = _terminal_size()
+    bindings = []
+    with tqdm(total=len(points), desc="binding", unit="pt", file=sys.stderr,
+              leave=False, ncols=columns, nrows=lines) as bar:
+        for start in range(0, len(points), _BIND_CHUNK):
+            chunk = points[start:start + _BIND_CHUNK]
+            bindings.append(bind(chunk, cage_v, cage_f, method=method))
+            bar.update(len(chunk))
+    return lambda new_v: np.concatenate([b.deform(new_v) for b in bindings], axis=0)
+
+
+def _emit_json(obj) -> None:
+    """Print one JSON object on stdout (non-finite floats become null)."""
+
+    def clean(x):
+        if isinstance(x, float) and not math.isfinite(x):
+            return None
+        if isinstance(x, dict):
+            return {k: clean(v) for k, v in x.items()}
+        if isinstance(x, (list, tuple)):
+            return [clean(v) for v in x]
+        return x
+
+    click.echo(json.dumps(clean(obj), allow_nan=False))
+
+
+_debug_option = click.option(
+    "--debug", is_flag=True, expose_value=False, is_eager=True,
+    help="Show the full traceback on errors.",
+)
+_json_option = click.option(
+    "--json", "as_json", is_flag=True,
+    help="Print one JSON object with the results on stdout (and nothing else there).",
+)
+
+
+# ---------------------------------------------------------------------------- commands
+
+
+@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, "--version", prog_name="cagekit",
+                      message="%(prog)s %(version)s")
+@click.option("--debug", is_flag=True, help="Show full tracebacks on errors (any command).")
+def main(debug: bool) -> None:
+    """Detail-preserving shape deformation with cages (after Neural Cages, CVPR 2020).
+
+    Bad input exits with status 2 and one line on stderr naming the file; --debug shows
+    the traceback.
+    """
+
+
+@main.command(short_help="Deform a mesh or point cloud by moving its cage.")
+@click.argument("mesh", type=click.Path(dir_okay=False))
+@click.argument("cage", type=click.Path(dir_okay=False))
+@click.argument("deformed_cage", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", "out", required=True, type=click.Path(dir_okay=False),
+              help="Deformed shape to write (mesh or point cloud, format from extension).")
+@click.option("--coords", type=click.Choice(["mvc", "green"]), default="mvc",
+              show_default=True, help="Cage coordinates.")
+@_json_option
+@_debug_option
+@click.pass_context
+def apply(ctx, mesh, cage, deformed_cage, out, coords, as_json):
+    """Deform MESH by moving its CAGE to DEFORMED_CAGE.
+
+    MESH is a mesh or a point cloud; CAGE a closed triangle mesh around it; DEFORMED_CAGE
+    the same cage with moved vertices (same count and order; if it has faces they must
+    be CAGE's). The points are bound once to CAGE with generalised barycentric
+    coordinates and mapped through DEFORMED_CAGE; the result, with MESH's faces, is
+    written to OUT.
+
+    \b
+    Example:
+      cagekit apply shape.obj cage.obj cage_deformed.obj -o deformed.obj
+    """
+    import numpy as np
+
+    from cagekit import io
+    from cagekit.cage import cage_encloses, check_cage
+
+    _start(ctx)
+    _check_output(out, (mesh, cage, deformed_cage))
+    seconds = {}
+
+    t0 = time.perf_counter()
+    V, F = io.load_shape(mesh)
+    write = _shape_writer(out, has_faces=len(F) > 0)
+    CV, CF = io.load_mesh(cage)
+    faces = check_cage(CV, CF, name=cage)  # closed, 2-manifold, oriented (flipped outward)
+    DV, DF = io.load_shape(deformed_cage)
+    if len(DV) != len(CV):
+        raise InputError(f"{deformed_cage} has {len(DV)} vertices but {cage} has "
+                         f"{len(CV)}: the deformed cage must have the cage's vertices "
+                         "(same count and order)")
+    if len(DF) and (DF.shape != CF.shape or not np.array_equal(DF, CF)):
+        raise InputError(f"its faces differ from those of {cage}; the deformed cage must "
+                         "be the same mesh with moved vertices", deformed_cage)
+    seconds["load"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    encloses = cage_encloses(V, CV, faces)
+    if not encloses:
+        click.echo(f"{ctx.command_path}: warning: {cage} does not enclose all of {mesh}; "
+                   "points outside the cage are extrapolated", err=True)
+    seconds["check"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    deform = _bind(V, CV, faces, coords)
+    seconds["bind"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    out_v = deform(DV)
+    seconds["deform"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    write(out, out_v, F)
+    seconds["write"] = time.perf_counter() - t0
+
+    if as_json:
+        _emit_json({
+            "output": out,
+            "n_points": len(V),
+            "n_faces": len(F),
+            "n_cage_vertices": len(CV),
+            "coords": coords,
+            "encloses": bool(encloses),
+            "seconds": seconds,
+        })
+    else:
+        kind = "vertices" if len(F) else "points"
+        click.echo(f"wrote {out}: {len(V)} {kind} deformed by a {len(CV)}-vertex cage "
+                   f"({sum(seconds.values()):.2f} s)")
+
+
+_EVAL_ROLES = ("source", "target", "deformed")
+
+
+@main.command(name="eval", short_help="Chamfer distance and dCotLap of a deformed shape.")
+@click.argument("source", type=click.Path(dir_okay=False))
+@click.argument("target", type=click.Path(dir_okay=False))
+@click.argument("deformed", type=click.Path(dir_okay=False))
+@click.option("--samples", default=5000, show_default=True, type=click.IntRange(min=1),
+              help="Surface samples per shape for the Chamfer distance.")
+@click.option("--seed", default=0, show_default=True, type=int, help="Sampling seed.")
+@_json_option
+@_debug_option
+@click.pass_context
+def eval_(ctx, source, target, deformed, samples, seed, as_json):
+    """Chamfer distance and dCotLap distortion of DEFORMED (a deformed SOURCE) vs TARGET.
+
+    As the paper's evaluation: TARGET is normalised on its own and DEFORMED mapped by the
+    same transform; the normalised SOURCE is the reference for distortion. SOURCE and
+    DEFORMED must have the same vertices (count and order); TARGET may be a point cloud.
+    Lower is better for both figures.
+    """
+    import numpy as np
+
+    from cagekit.io import load_shape
+    from cagekit.metrics import evaluate
+
+    _start(ctx)
+    paths = dict(zip(_EVAL_ROLES, (source, target, deformed)))
+    src = load_shape(source)
+    if len(src[1]) == 0:
+        raise InputError("has no faces; the source must be a mesh (dCotLap needs faces)",
+                         source)
+    tgt = load_shape(target)
+    dfm = load_shape(deformed)
+    if len(dfm[0]) != len(src[0]):
+        raise InputError(f"{deformed} has {len(dfm[0])} vertices but {source} has "
+                         f"{len(src[0])}: DEFORMED must be SOURCE with moved vertices")
+    for path, (V, _) in zip((source, target, deformed), (src, tgt, dfm)):
+        if not np.ptp(V, axis=0).max() > 0:
+            raise InputError("all its points coincide (zero extent); nothing to compare",
+                             path)
+    try:
+        result = evaluate(src, tgt, dfm, n_samples=samples, seed=seed)
+    except InputError as exc:
+        if exc.path is None:  # name the file(s) the message is about
+            low = exc.problem.lower()
+            named = [paths[r] for r in _EVAL_ROLES if r in low] or list(paths.values())
+            raise InputError(exc.problem, ", ".join(dict.fromkeys(named))) from exc
+        raise
+    if as_json:
+        _emit_json({"source": source, "target": target, "deformed": deformed, **result})
+        return
+    click.echo(f"{'metric':<9}{'value':<14}as in the paper's tables")
+    click.echo(f"{'CD':<9}{result['cd']:<14.6g}{result['cd_x1e2']:.4f} (x 1e2)")
+    click.echo(f"{'dCotLap':<9}{result['dcotlap']:<14.6g}{result['dcotlap_x1e3']:.4f} (x 1e3)")
+
+
+def _parse_views(ctx, param, values):
+    """``--view`` callback: ``"ELEV,AZIM"`` strings to float pairs."""
+    views = []
+    for text in values:
+        try:
+            elev, azim = (float(x) for x in text.replace(" ", "").split(","))
+        except ValueError:
+            raise click.BadParameter(f"expected ELEV,AZIM in degrees, got {text!r}") from None
+        if not (math.isfinite(elev) and math.isfinite(azim)):
+            raise click.BadParameter(f"angles must be finite, got {text!r}")
+        views.append((elev, azim))
+    return views
+
+
+def _parse_size(ctx, param, text: str):
+    """``--size`` callback: ``"WxH"`` (or ``"N"``) to a pair of ints."""
+    try:
+        parts = [int(x) for x in text.lower().split("x")]
+    except ValueError:
+        parts = []
+    if len(parts) == 1:
+        parts = parts * 2
+    if len(parts) != 2 or min(parts) < 16 or max(parts) > 8192:
+        raise click.BadParameter(f"expected WIDTHxHEIGHT in pixels (16..8192), got {text!r}")
+    return tuple(parts)
+
+
+@main.command(short_help="Draw meshes (and cages) side by side into a PNG.")
+@click.argument("meshes", nargs=-1, required=True, metavar="MESH...",
+                type=click.Path(dir_okay=False))
+@click.option("-o", "--output", "out", required=True, type=click.Path(dir_okay=False),
+              help="PNG file to write.")
+@click.option("--cage", "cages", multiple=True, type=click.Path(dir_okay=False),
+              help="Cage of a mesh, drawn as a wireframe; once per mesh, in order "
+                   "(later meshes without a --cage have none).")
+@click.option("--title", "titles", multiple=True,
+              help="Title of a panel; once per mesh, in order (default: file names).")
+@click.option("--caption", default=None, help="A line of text under the picture.")
+@click.option("--view", "views", multiple=True, default=("20,-60",), show_default=True,
+              callback=_parse_views, metavar="ELEV,AZIM",
+              help="Camera angles in degrees; repeat for more rows.")
+@click.option("--size", default="480x480", show_default=True, callback=_parse_size,
+              metavar="WxH", help="Panel size in pixels.")
+@click.option("--up", type=click.Choice(["x", "y", "z"]), default="y", show_default=True,
+              help="Vertical axis of the shapes.")
+@click.option("--same-scale", is_flag=True,
+              help="Draw all panels in one frame (shapes in the same units).")
+@_debug_option
+@click.pass_context
+def render(ctx, meshes, out, cages, titles, caption, views, size, up, same_scale):
+    """Draw MESH... side by side (and their cages) into a PNG picture.
+
+    Meshes are flat-shaded; point clouds are drawn as dots; each --cage is drawn as a
+    wireframe over the mesh in the same position.
+
+    \b
+    Example:
+      cagekit render shape.obj deformed.obj --cage cage.obj --cage cage_deformed.obj \\
+          -o compare.png
+    """
+    from cagekit.io import load_mesh, load_shape
+    from cagekit.render import render_meshes
+
+    _start(ctx)
+    if len(cages) > len(meshes):
+        raise click.UsageError(f"{len(cages)} --cage options for {len(meshes)} meshes; "
+                               "give at most one cage per mesh", ctx=ctx)
+    if titles and len(titles) != len(meshes):
+        raise click.UsageError(f"{len(titles)} --title options for {len(meshes)} meshes; "
+                               "give one title per mesh", ctx=ctx)
+    _check_output(out, (*meshes, *cages), extensions={".png"})
+
+    shapes = [load_shape(path) for path in meshes]
+    cage_shapes = [load_mesh(path) for path in cages]
+    cage_shapes += [None] * (len(shapes) - len(cage_shapes))
+    if not titles:
+        titles = [os.path.basename(path) for path in meshes]
+    render_meshes(shapes, out, cages=cage_shapes, titles=list(titles), caption=caption,
+                  views=views, size=size, up=up, same_scale=same_scale)
+
+
+if __name__ == "__main__":
+    main()

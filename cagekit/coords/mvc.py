@@ -1,0 +1,486 @@
+"""Mean value coordinates for closed triangle cages (Ju, Schaefer & Warren 2005).
+
+The formulation
+---------------
+For a point ``x`` let ``A_j = p_j - x``, ``d_j = |A_j|`` and ``u_j = A_j / d_j``. Every cage
+triangle ``T = (a, b, c)`` projects to a spherical triangle on the unit sphere around ``x``;
+its *mean vector* (the integral of the outward unit normal over it) is a sum over its edges,
+
+    m_T = 1/2 * sum_{directed edges (i -> j) of T}  beta_ij * n_ij,
+    beta_ij = angle(u_i, u_j),   n_ij = (u_i x u_j) / |u_i x u_j|,
+
+and the triangle's coordinates ``lambda`` solve ``sum_k lambda_k u_k = m_T``. The weights are
+``w_j = sum_T lambda_j^T / d_j`` and the coordinates are ``w / sum(w)``.
+
+This is the vector form of the paper (its section 3.2), not the closed "c_i, s_i" form of its
+pseudo-code and of VTK. Two choices make it accurate close to the cage, where the closed form
+loses digits to cancellation (``pi - h`` and ``1 - c_i**2`` both vanish on a face):
+
+* ``beta_ij * n_ij`` is computed **once per undirected edge** and enters the two faces that
+  share the edge with opposite signs, so ``sum_T m_T = 0`` holds to rounding whatever the
+  error of each edge term. Since ``sum_j w_j A_j = sum_T (U_T lambda_T)``, linear precision
+  then only depends on the residual of each 3x3 solve.
+* The 3x3 solve uses Cramer's rule with the adjugate rows ``u_b x u_c`` (the same edge cross
+  products, reused) and ``det = u_a . (u_b x u_c)``. Its residual is of the order of
+  ``eps * |lambda|``; near a face or an edge ``|lambda|`` and the weight sum grow together
+  like ``1 / distance``, so the *normalised* coordinates keep linear precision to about
+  ``eps * D`` all the way down to the switch-over below. Angles are ``atan2(|u_i x u_j|,
+  u_i . u_j)``, accurate at 0 and at pi, evaluated by :mod:`cagekit.coords.fastangle`.
+
+Switch-over (exact interpolation)
+---------------------------------
+Points within ``snap * D`` (``D`` = the cage's bounding-box diagonal, ``snap = 1e-13`` by
+default) of a cage vertex, of an edge or of a face get the limit values of MVC there: the
+vertex's unit weight, linear interpolation along the edge, barycentric coordinates on the
+face. The error this switch makes in linear precision is at most the distance, ``snap * D``.
+A face whose plane passes within ``snap * D`` of ``x`` while ``x`` lies outside the face is
+skipped (its contribution tends to zero there).
+
+Far outside
+-----------
+The weight sum decays like ``D**3 / R**4`` at distance ``R`` while single weights decay like
+``D**2 / R**3``: the coordinates lose about ``log10(R / D)`` digits to cancellation. This is
+the conditioning of the problem, not of the formula. Beyond ``2 D`` the output is finite and
+sums to one but linear precision degrades; if the weight sum cannot be resolved at all
+(``|sum w| <= 1e-15 sum |w|``, around ``R > 1e14 D``) the point gets the barycentric
+coordinates of its closest cage point, which are finite and sum to one.
+
+Memory
+------
+Only the ``(n, k)`` output is proportional to ``n``. Scratch space is ``O(k + e)`` per thread.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from cagekit.cage import cage_topology
+from cagekit.coords.fastangle import _TAN_PI_8, angle_from_sin_cos, atan_small
+
+__all__ = ["mean_value_coordinates", "DEFAULT_SNAP"]
+
+DEFAULT_SNAP = 1e-13
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _cross(ax, ay, az, bx, by, bz):
+    return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _closest_point_weights(x, cage_v, faces, row):
+    """Barycentric weights of the cage point closest to ``x`` (finite fallback)."""
+    best = np.inf
+    best_f = 0
+    best_b = np.zeros(3)
+    for f in range(faces.shape[0]):
+        a = cage_v[faces[f, 0]]
+        b = cage_v[faces[f, 1]]
+        c = cage_v[faces[f, 2]]
+        # Closest point on triangle (Ericson, Real-Time Collision Detection, 5.1.5).
+        ab = b - a
+        ac = c - a
+        ap = x - a
+        d1 = ab @ ap
+        d2 = ac @ ap
+        bp = x - b
+        d3 = ab @ bp
+        d4 = ac @ bp
+        cp = x - c
+        d5 = ab @ cp
+        d6 = ac @ cp
+        va = d3 * d6 - d5 * d4
+        vb = d5 * d2 - d1 * d6
+        vc = d1 * d4 - d3 * d2
+        if d1 <= 0.0 and d2 <= 0.0:
+            bw = (1.0, 0.0, 0.0)
+        elif d3 >= 0.0 and d4 <= d3:
+            bw = (0.0, 1.0, 0.0)
+        elif d6 >= 0.0 and d5 <= d6:
+            bw = (0.0, 0.0, 1.0)
+        elif vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+            t = d1 / (d1 - d3)
+            bw = (1.0 - t, t, 0.0)
+        elif vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+            t = d2 / (d2 - d6)
+            bw = (1.0 - t, 0.0, t)
+        elif va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
+            t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+            bw = (0.0, 1.0 - t, t)
+        else:
+            s = 1.0 / (va + vb + vc)
+            bw = (va * s, vb * s, 1.0 - (va + vb) * s)
+        q = bw[0] * a + bw[1] * b + bw[2] * c
+        dist = np.sum((q - x) ** 2)
+        if dist < best:
+            best = dist
+            best_f = f
+            best_b[0], best_b[1], best_b[2] = bw
+    row[:] = 0.0
+    for i in range(3):
+        row[faces[best_f, i]] += best_b[i]
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _mvc_point(x, cage_v, faces, edges, edge_len, face_edges, face_signs, face_n, snap,
+               U, dist, G, X, row):
+    """MVC of one point into ``row`` (k,). Scratch: U (k,3), dist (k,), G, X (e,3)."""
+    k = cage_v.shape[0]
+    row[:] = 0.0
+    # Relative vectors, distances, vertex snap.
+    nearest = 0
+    for j in range(k):
+        ax = cage_v[j, 0] - x[0]
+        ay = cage_v[j, 1] - x[1]
+        az = cage_v[j, 2] - x[2]
+        d = np.sqrt(ax * ax + ay * ay + az * az)
+        dist[j] = d
+        if d < dist[nearest]:
+            nearest = j
+        if d > 0.0:
+            U[j, 0] = ax / d
+            U[j, 1] = ay / d
+            U[j, 2] = az / d
+    if dist[nearest] <= snap:
+        row[nearest] = 1.0
+        return
+    # Edge terms: X = u_lo x u_hi, G = beta/2 * X/|X|; edge snap.
+    for e in range(edges.shape[0]):
+        a = edges[e, 0]
+        b = edges[e, 1]
+        cx, cy, cz = _cross(U[a, 0], U[a, 1], U[a, 2], U[b, 0], U[b, 1], U[b, 2])
+        s = np.sqrt(cx * cx + cy * cy + cz * cz)
+        cos_ab = U[a, 0] * U[b, 0] + U[a, 1] * U[b, 1] + U[a, 2] * U[b, 2]
+        # distance from x to the edge's line = d_a d_b sin(beta) / |p_b - p_a|
+        if cos_ab < 0.0 and dist[a] * dist[b] * s <= snap * edge_len[e]:
+            t = dist[a] / (dist[a] + dist[b])
+            row[a] = 1.0 - t
+            row[b] = t
+            return
+        X[e, 0] = cx
+        X[e, 1] = cy
+        X[e, 2] = cz
+        if s > 0.0:
+            g = 0.5 * angle_from_sin_cos(s, cos_ab) / s
+            G[e, 0] = g * cx
+            G[e, 1] = g * cy
+            G[e, 2] = g * cz
+        else:
+            G[e, 0] = 0.0
+            G[e, 1] = 0.0
+            G[e, 2] = 0.0
+    # Face terms.
+    for f in range(faces.shape[0]):
+        ia = faces[f, 0]
+        ib = faces[f, 1]
+        ic = faces[f, 2]
+        nx = face_n[f, 0]
+        ny = face_n[f, 1]
+        nz = face_n[f, 2]
+        h = (x[0] - cage_v[ia, 0]) * nx + (x[1] - cage_v[ia, 1]) * ny \
+            + (x[2] - cage_v[ia, 2]) * nz
+        if abs(h) <= snap:
+            # In the face's plane: barycentric coordinates of x if it is on the face.
+            wa = 0.0
+            wb = 0.0
+            wc = 0.0
+            for r in range(3):
+                i0 = faces[f, (r + 1) % 3]
+                i1 = faces[f, (r + 2) % 3]
+                c0, c1, c2 = _cross(cage_v[i0, 0] - x[0], cage_v[i0, 1] - x[1],
+                                    cage_v[i0, 2] - x[2], cage_v[i1, 0] - x[0],
+                                    cage_v[i1, 1] - x[1], cage_v[i1, 2] - x[2])
+                area = c0 * nx + c1 * ny + c2 * nz
+                if r == 0:
+                    wa = area
+                elif r == 1:
+                    wb = area
+                else:
+                    wc = area
+            total = wa + wb + wc
+            if total > 0.0 and min(wa, wb, wc) >= -1e-12 * total:
+                wa = max(wa, 0.0)
+                wb = max(wb, 0.0)
+                wc = max(wc, 0.0)
+                total = wa + wb + wc
+                row[:] = 0.0
+                row[ia] = wa / total
+                row[ib] = wb / total
+                row[ic] = wc / total
+                return
+            continue
+        e_ab = face_edges[f, 0]
+        e_bc = face_edges[f, 1]
+        e_ca = face_edges[f, 2]
+        s_ab = face_signs[f, 0]
+        s_bc = face_signs[f, 1]
+        s_ca = face_signs[f, 2]
+        mx = s_ab * G[e_ab, 0] + s_bc * G[e_bc, 0] + s_ca * G[e_ca, 0]
+        my = s_ab * G[e_ab, 1] + s_bc * G[e_bc, 1] + s_ca * G[e_ca, 1]
+        mz = s_ab * G[e_ab, 2] + s_bc * G[e_bc, 2] + s_ca * G[e_ca, 2]
+        # adjugate rows: u_b x u_c, u_c x u_a, u_a x u_b
+        det = s_bc * (U[ia, 0] * X[e_bc, 0] + U[ia, 1] * X[e_bc, 1] + U[ia, 2] * X[e_bc, 2])
+        if det == 0.0:
+            continue
+        inv = 1.0 / det
+        la = s_bc * (mx * X[e_bc, 0] + my * X[e_bc, 1] + mz * X[e_bc, 2]) * inv
+        lb = s_ca * (mx * X[e_ca, 0] + my * X[e_ca, 1] + mz * X[e_ca, 2]) * inv
+        lc = s_ab * (mx * X[e_ab, 0] + my * X[e_ab, 1] + mz * X[e_ab, 2]) * inv
+        row[ia] += la / dist[ia]
+        row[ib] += lb / dist[ib]
+        row[ic] += lc / dist[ic]
+    # The weight sum is positive inside the cage, negative outside it and small far away,
+    # where single weights cancel.
+    if _normalise_row(row):
+        return
+    _closest_point_weights(x, cage_v, faces, row)
+
+
+_LANES = 16
+
+
+@numba.njit(cache=True, error_model="numpy", fastmath={"contract"})
+def _mvc_lanes(P, cage_v, faces, edges, face_edges, face_signs, face_n, face_off, snap,
+               U, inv_d, G, X, lam, acc):
+    """Unnormalised MVC of ``_LANES`` points at once, for the points off the cage.
+
+    The loops run over lanes (points) innermost, with no branches, so that LLVM vectorises
+    them. Points that need the switch-over are not handled here: a point within ``snap``
+    of a vertex, an edge or a face is within ``snap`` of that face's plane, and every such
+    (point, face) pair poisons the point's weights with NaN; the caller then recomputes
+    the point with :func:`_mvc_point`.
+
+    Parameters
+    ----------
+    P : (3, L) float64
+        The points, coordinates by lane.
+    U : (3, k, L), inv_d : (k, L), G, X : (3, e, L), lam : (3, m, L)
+        Scratch.
+    acc : (k, L) float64
+        Receives the unnormalised weights ``w_j`` of each lane.
+    """
+    k = cage_v.shape[0]
+    for j in range(k):
+        for lane in range(_LANES):
+            ax = cage_v[j, 0] - P[0, lane]
+            ay = cage_v[j, 1] - P[1, lane]
+            az = cage_v[j, 2] - P[2, lane]
+            inv = 1.0 / np.sqrt(ax * ax + ay * ay + az * az)
+            inv_d[j, lane] = inv
+            U[0, j, lane] = ax * inv
+            U[1, j, lane] = ay * inv
+            U[2, j, lane] = az * inv
+    # Edge terms: X = u_lo x u_hi and G = beta / 2 * X / |X|, with one division for the
+    # angle's argument and 1/|X| together (see cagekit.coords.fastangle for the angle).
+    for e in range(edges.shape[0]):
+        a = edges[e, 0]
+        b = edges[e, 1]
+        for lane in range(_LANES):
+            uax = U[0, a, lane]
+            uay = U[1, a, lane]
+            uaz = U[2, a, lane]
+            ubx = U[0, b, lane]
+            uby = U[1, b, lane]
+            ubz = U[2, b, lane]
+            cx = uay * ubz - uaz * uby
+            cy = uaz * ubx - uax * ubz
+            cz = uax * uby - uay * ubx
+            s = np.sqrt(cx * cx + cy * cy + cz * cz)
+            c = uax * ubx + uay * uby + uaz * ubz
+            ac = abs(c)
+            lo = min(s, ac)
+            hi = max(s, ac)
+            big = lo > _TAN_PI_8 * hi
+            num = lo - hi if big else lo
+            den = lo + hi if big else hi
+            sd = den * s
+            pos = sd > 0.0
+            inv = 1.0 / (sd if pos else 1.0)
+            r = atan_small(num * s * inv)
+            r = r + 0.7853981633974483 if big else r
+            r = 1.5707963267948966 - r if s > ac else r
+            r = 3.141592653589793 - r if c < 0.0 else r
+            g = 0.5 * r * den * inv
+            g = g if pos else 0.0
+            X[0, e, lane] = cx
+            X[1, e, lane] = cy
+            X[2, e, lane] = cz
+            G[0, e, lane] = g * cx
+            G[1, e, lane] = g * cy
+            G[2, e, lane] = g * cz
+    # Face terms: mean vector, Cramer's rule; lam[:, f] = lambda / d of the face's vertices.
+    for f in range(faces.shape[0]):
+        ia = faces[f, 0]
+        ib = faces[f, 1]
+        ic = faces[f, 2]
+        nx = face_n[f, 0]
+        ny = face_n[f, 1]
+        nz = face_n[f, 2]
+        off = face_off[f]
+        e_ab = face_edges[f, 0]
+        e_bc = face_edges[f, 1]
+        e_ca = face_edges[f, 2]
+        s_ab = face_signs[f, 0]
+        s_bc = face_signs[f, 1]
+        s_ca = face_signs[f, 2]
+        for lane in range(_LANES):
+            h = P[0, lane] * nx + P[1, lane] * ny + P[2, lane] * nz - off
+            mx = s_ab * G[0, e_ab, lane] + s_bc * G[0, e_bc, lane] + s_ca * G[0, e_ca, lane]
+            my = s_ab * G[1, e_ab, lane] + s_bc * G[1, e_bc, lane] + s_ca * G[1, e_ca, lane]
+            mz = s_ab * G[2, e_ab, lane] + s_bc * G[2, e_bc, lane] + s_ca * G[2, e_ca, lane]
+            xa0 = s_bc * X[0, e_bc, lane]
+            xa1 = s_bc * X[1, e_bc, lane]
+            xa2 = s_bc * X[2, e_bc, lane]
+            det = U[0, ia, lane] * xa0 + U[1, ia, lane] * xa1 + U[2, ia, lane] * xa2
+            ok = abs(h) > snap and det != 0.0
+            inv = 1.0 / (det if ok else 1.0)
+            inv = inv if ok else np.nan
+            lam[0, f, lane] = (mx * xa0 + my * xa1 + mz * xa2) * inv * inv_d[ia, lane]
+            lam[1, f, lane] = s_ca * (mx * X[0, e_ca, lane] + my * X[1, e_ca, lane]
+                                      + mz * X[2, e_ca, lane]) * inv * inv_d[ib, lane]
+            lam[2, f, lane] = s_ab * (mx * X[0, e_ab, lane] + my * X[1, e_ab, lane]
+                                      + mz * X[2, e_ab, lane]) * inv * inv_d[ic, lane]
+    for j in range(k):
+        for lane in range(_LANES):
+            acc[j, lane] = 0.0
+    for f in range(faces.shape[0]):
+        for r in range(3):
+            j = faces[f, r]
+            for lane in range(_LANES):
+                acc[j, lane] += lam[r, f, lane]
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _normalise_row(row):
+    """Divide a row of MVC weights by their (compensated) sum; False if it is unresolvable."""
+    total = 0.0
+    comp = 0.0
+    magnitude = 0.0
+    for j in range(row.shape[0]):
+        t = total + row[j]
+        if abs(total) >= abs(row[j]):
+            comp += (total - t) + row[j]
+        else:
+            comp += (row[j] - t) + total
+        total = t
+        magnitude += abs(row[j])
+    total += comp
+    if not (abs(total) > 1e-15 * magnitude and np.isfinite(magnitude)):
+        return False
+    inv = 1.0 / total
+    for j in range(row.shape[0]):
+        row[j] *= inv
+    return True
+
+
+@numba.njit(parallel=True, cache=True, error_model="numpy")
+def _mvc_kernel(points, cage_v, faces, edges, edge_len, face_edges, face_signs, face_n,
+                face_off, snap, n_chunks, out):
+    n = points.shape[0]
+    k = cage_v.shape[0]
+    e = edges.shape[0]
+    m = faces.shape[0]
+    L = _LANES
+    n_blocks = (n + L - 1) // L
+    n_chunks = max(1, min(n_blocks, n_chunks))
+    for chunk in numba.prange(n_chunks):
+        # scratch, once per chunk: O(k + e + m) memory, independent of n
+        P = np.empty((3, L))
+        U = np.empty((3, k, L))
+        inv_d = np.empty((k, L))
+        G = np.empty((3, e, L))
+        X = np.empty((3, e, L))
+        lam = np.empty((3, m, L))
+        acc = np.empty((k, L))
+        Us = np.empty((k, 3))
+        ds = np.empty(k)
+        Gs = np.empty((e, 3))
+        Xs = np.empty((e, 3))
+        for blk in range(chunk * n_blocks // n_chunks, (chunk + 1) * n_blocks // n_chunks):
+            start = blk * L
+            stop = min(start + L, n)
+            for lane in range(L):
+                src = min(start + lane, n - 1)
+                P[0, lane] = points[src, 0]
+                P[1, lane] = points[src, 1]
+                P[2, lane] = points[src, 2]
+            _mvc_lanes(P, cage_v, faces, edges, face_edges, face_signs, face_n, face_off,
+                       snap, U, inv_d, G, X, lam, acc)
+            for i in range(start, stop):
+                lane = i - start
+                row = out[i]
+                for j in range(k):
+                    row[j] = acc[j, lane]
+                if not _normalise_row(row):
+                    _mvc_point(points[i], cage_v, faces, edges, edge_len, face_edges,
+                               face_signs, face_n, snap, Us, ds, Gs, Xs, row)
+
+
+def mean_value_coordinates(points, cage_v, cage_f, snap: float = DEFAULT_SNAP, out=None,
+                           check: bool = True):
+    """Mean value coordinates of points with respect to a closed triangle cage.
+
+    Parameters
+    ----------
+    points : (n, 3) array_like of float
+        Query points; anywhere in space (inside, on, near or outside the cage).
+    cage_v : (k, 3) array_like of float
+        Cage vertices.
+    cage_f : (m, 3) array_like of int
+        Cage faces: closed, 2-manifold, consistently oriented. With ``check=True`` an inward
+        cage is flipped and anything else invalid raises :class:`cagekit.CageError`.
+    snap : float, default 1e-13
+        Switch-over distance to the exact limits on vertices, edges and faces, relative to
+        the cage's bounding-box diagonal (see the module docstring).
+    out : (n, k) float64 ndarray, optional
+        Where to write the result (C-contiguous). Allocated when not given.
+    check : bool, default True
+        Validate the cage with :func:`cagekit.cage.check_cage`.
+
+    Returns
+    -------
+    weights : (n, k) float64
+        Rows sum to one; ``weights @ cage_v`` reproduces the points.
+
+    Examples
+    --------
+    >>> from cagekit.shapes import box_cage
+    >>> v, f = box_cage()
+    >>> w = mean_value_coordinates([[0.1, 0.2, -0.3]], v, f)
+    >>> bool(np.allclose(w.sum(axis=1), 1.0)), bool(np.allclose(w @ v, [[0.1, 0.2, -0.3]]))
+    (True, True)
+    """
+    from cagekit.cage import check_cage
+    from cagekit.errors import InputError
+
+    cage_v = np.asarray(cage_v, dtype=np.float64)
+    faces = check_cage(cage_v, cage_f) if check else np.asarray(cage_f, dtype=np.int64)
+    pts = np.asarray(points, dtype=np.float64)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise InputError(f"points must be an (n, 3) array, got shape {pts.shape}")
+    if not np.all(np.isfinite(pts)):
+        raise InputError("points contain NaN or inf")
+    # Work relative to the cage's bounding-box centre: the result is translation invariant
+    # and this keeps the relative vectors as accurate as the input allows.
+    lo, hi = cage_v.min(axis=0), cage_v.max(axis=0)
+    centre = 0.5 * (lo + hi)
+    diag = float(np.linalg.norm(hi - lo))
+    cv = np.ascontiguousarray(cage_v - centre)
+    px = np.ascontiguousarray(pts - centre)
+    topo = cage_topology(faces)
+    edge_len = np.linalg.norm(cv[topo.edges[:, 1]] - cv[topo.edges[:, 0]], axis=1)
+    normals = np.cross(cv[faces[:, 1]] - cv[faces[:, 0]], cv[faces[:, 2]] - cv[faces[:, 0]])
+    norms = np.linalg.norm(normals, axis=1, keepdims=True)
+    normals = np.divide(normals, norms, out=np.zeros_like(normals), where=norms > 0)
+    n, k = len(px), len(cv)
+    if out is None:
+        out = np.empty((n, k), dtype=np.float64)
+    elif out.shape != (n, k) or out.dtype != np.float64 or not out.flags.c_contiguous:
+        raise ValueError(f"out must be a C-contiguous float64 array of shape {(n, k)}")
+    face_off = np.einsum("ij,ij->i", cv[faces[:, 0]], normals)
+    if n:
+        _mvc_kernel(px, cv, np.ascontiguousarray(faces), topo.edges, edge_len, topo.face_edges,
+                    topo.face_edge_signs, normals, face_off, snap * diag,
+                    64 * numba.get_num_threads(), out)
+    return out

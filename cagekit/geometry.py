@@ -1,0 +1,710 @@
+"""Mesh and point-cloud geometry shared by the rest of cagekit.
+
+Vertices are ``(n, 3)`` float64 and faces ``(m, 3)`` int64, as libigl; a point cloud is a
+mesh with no faces (``F`` is ``None`` or has zero rows). Every function checks its input and
+raises :class:`cagekit.errors.InputError` for NaN or infinite coordinates, wrong shapes,
+out-of-range face indices and empty input; no function returns NaN.
+
+Decisions
+---------
+- :func:`cotangent_laplacian` is ``igl.cotmatrix``. Its sign convention is the one of the
+  DESIGN ("Metrics"): ``L_ij = (cot a + cot b) / 2`` off the diagonal, ``L_ii = -sum_j L_ij``,
+  so ``L`` is negative semi-definite, symmetric and its rows sum to 0; no mass matrix.
+  libigl returns a CSC matrix; it is converted to CSR. A face of zero area makes a
+  cotangent infinite (libigl then returns inf and NaN entries), so it is refused with
+  :class:`~cagekit.errors.InputError` instead.
+- :func:`normalize` is the paper's frame: bounding-box centre to the origin, divided by
+  the largest half-extent.
+- :func:`sample_surface` uses ``trimesh.sample.sample_surface`` (area-weighted face choice,
+  uniform point in the triangle) with a seeded ``numpy.random.Generator``; no global
+  random state is touched.
+- Neighbourhoods are a :class:`Neighborhoods` pair of padded arrays ``(index, mask)``,
+  both ``(n, m)``: row ``i`` lists vertex ``i`` itself (column 0 for meshes) and its
+  neighbours; padding slots repeat ``i`` and have ``mask`` False. Gathering
+  ``V_moved[index]`` is one vectorised fancy-indexing step, so planes can be re-evaluated
+  on moved vertices with the neighbourhoods held fixed (:func:`pca_planes`).
+- PCA normals have an arbitrary sign from the eigen-solver; :func:`orient_normals` fixes
+  it. With faces, a normal is made to agree with the area-weighted vertex normal
+  (``igl.per_vertex_normals``). For point clouds, and for mesh vertices that touch no face
+  of positive area, it is made to point away from the centroid of all points: a
+  heuristic that is right for star-shaped clouds (a sphere) and may be wrong in concave
+  regions.
+- A neighbourhood with fewer than 3 points, or with collinear points, has a degenerate
+  covariance. Its "normal" is then any unit vector orthogonal to the points' span (as the
+  eigen-solver returns it); it is finite and the point-to-plane distance is still 0.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import igl
+import numpy as np
+import scipy.sparse
+import trimesh
+from numpy.typing import ArrayLike
+from scipy.spatial import cKDTree
+
+from cagekit.errors import InputError
+
+__all__ = [
+    "Neighborhoods",
+    "as_faces",
+    "as_vertices",
+    "cotangent_laplacian",
+    "denormalize",
+    "face_areas",
+    "normalize",
+    "orient_normals",
+    "pca_normals",
+    "pca_planes",
+    "point_to_plane",
+    "remove_duplicate_faces",
+    "sample_surface",
+    "vertex_neighborhoods",
+]
+
+_PLANE_CHUNK = 65536  # rows of neighbourhoods processed at once by pca_planes
+
+
+# --------------------------------------------------------------------------- validation
+
+
+def as_vertices(V: ArrayLike, name: str = "V") -> np.ndarray:
+    """Check and convert vertex positions.
+
+    Parameters
+    ----------
+    V : array_like, shape (n, 3)
+        Vertex positions, any real dtype; ``n >= 1``.
+    name : str, optional
+        Name of the argument, used in error messages.
+
+    Returns
+    -------
+    V : numpy.ndarray, shape (n, 3), float64, C-contiguous
+        A copy only when a conversion was needed.
+
+    Raises
+    ------
+    InputError
+        Wrong shape, no points, non-numeric values, NaN or infinite coordinates.
+
+    Examples
+    --------
+    >>> as_vertices([[0, 0, 0], [1, 2, 3]]).dtype
+    dtype('float64')
+    """
+    try:
+        arr = np.ascontiguousarray(V, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{name} must be a numeric (n, 3) array: {exc}") from None
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise InputError(f"{name} must have shape (n, 3), got {arr.shape}")
+    if arr.shape[0] == 0:
+        raise InputError(f"{name} has no points")
+    if not np.isfinite(arr).all():
+        raise InputError(f"{name} contains NaN or infinite coordinates")
+    return arr
+
+
+def as_faces(F: ArrayLike | None, n_vertices: int, name: str = "F") -> np.ndarray:
+    """Check and convert triangle indices; ``None`` means no faces (a point cloud).
+
+    Parameters
+    ----------
+    F : array_like, shape (m, 3), or None
+        Triangle vertex indices, integers in ``[0, n_vertices)``. Floats are accepted
+        when every value is integral. ``None`` or an empty array give ``m = 0``.
+    n_vertices : int
+        Number of vertices the indices refer to.
+    name : str, optional
+        Name of the argument, used in error messages.
+
+    Returns
+    -------
+    F : numpy.ndarray, shape (m, 3), int64, C-contiguous
+
+    Raises
+    ------
+    InputError
+        Wrong shape, non-integral values or indices out of range.
+
+    Examples
+    --------
+    >>> as_faces(None, 4).shape
+    (0, 3)
+    >>> as_faces([[0, 1, 2]], 3).dtype
+    dtype('int64')
+    """
+    if F is None:
+        return np.zeros((0, 3), dtype=np.int64)
+    arr = np.asarray(F)
+    if arr.size == 0:
+        return np.zeros((0, 3), dtype=np.int64)
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise InputError(f"{name} must have shape (m, 3), got {arr.shape}")
+    if arr.dtype.kind == "f":
+        if not np.isfinite(arr).all() or (arr != np.round(arr)).any():
+            raise InputError(f"{name} must hold integer vertex indices")
+    elif arr.dtype.kind not in "iu":
+        raise InputError(
+            f"{name} must hold integer vertex indices, got dtype {arr.dtype}"
+        )
+    arr = np.ascontiguousarray(arr, dtype=np.int64)
+    if arr.min() < 0 or arr.max() >= n_vertices:
+        raise InputError(
+            f"{name} has vertex indices outside [0, {n_vertices}): "
+            f"min {arr.min()}, max {arr.max()}"
+        )
+    return arr
+
+
+def _check_count(n: int, name: str, minimum: int) -> int:
+    """Return ``n`` as an int, raising InputError if it is not an integer >= minimum."""
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < minimum:
+        raise InputError(f"{name} must be an integer >= {minimum}, got {n!r}")
+    return int(n)
+
+
+# ----------------------------------------------------------------------------- topology
+
+
+def remove_duplicate_faces(F: ArrayLike) -> np.ndarray:
+    """Drop repeated and degenerate faces, keeping the first occurrence of each.
+
+    Two faces are duplicates when they use the same three vertices, in any order and with
+    any orientation. A face that repeats a vertex index (``[i, i, j]``) is dropped too.
+
+    Parameters
+    ----------
+    F : array_like, shape (m, 3), int
+        Triangle vertex indices (non-negative).
+
+    Returns
+    -------
+    F2 : numpy.ndarray, shape (m2, 3), int64
+        The kept faces, rows unchanged and in their original order.
+
+    Examples
+    --------
+    >>> remove_duplicate_faces([[0, 1, 2], [2, 1, 0], [1, 1, 3], [1, 2, 3]]).tolist()
+    [[0, 1, 2], [1, 2, 3]]
+    """
+    F = as_faces(F, np.iinfo(np.int64).max)
+    key = np.sort(F, axis=1)
+    proper = (key[:, 0] != key[:, 1]) & (key[:, 1] != key[:, 2])
+    _, first = np.unique(key, axis=0, return_index=True)
+    keep = np.zeros(len(F), dtype=bool)
+    keep[first] = True
+    return F[keep & proper]
+
+
+def face_areas(V: ArrayLike, F: ArrayLike) -> np.ndarray:
+    """Area of each triangle.
+
+    Parameters
+    ----------
+    V : array_like, shape (n, 3), float
+        Vertex positions.
+    F : array_like, shape (m, 3), int
+        Triangles.
+
+    Returns
+    -------
+    areas : numpy.ndarray, shape (m,), float64
+
+    Examples
+    --------
+    >>> face_areas([[0, 0, 0], [2, 0, 0], [0, 1, 0]], [[0, 1, 2]]).tolist()
+    [1.0]
+    """
+    V = as_vertices(V)
+    F = as_faces(F, len(V))
+    cross = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    return 0.5 * np.linalg.norm(cross, axis=1)
+
+
+# ---------------------------------------------------------------------------- laplacian
+
+
+def cotangent_laplacian(V: ArrayLike, F: ArrayLike) -> scipy.sparse.csr_matrix:
+    """Cotangent Laplacian without mass matrix (``igl.cotmatrix``).
+
+    ``L_ij = (cot a_ij + cot b_ij) / 2`` for each edge ``ij`` (``a``, ``b`` the angles
+    opposite the edge; one term on a boundary edge) and ``L_ii = -sum_j L_ij``: symmetric,
+    negative semi-definite, rows summing to 0. Vertices in no face get an empty row.
+
+    Parameters
+    ----------
+    V : array_like, shape (n, 3), float
+        Vertex positions.
+    F : array_like, shape (m, 3), int
+        Triangles, ``m >= 1``; none may have zero area.
+
+    Returns
+    -------
+    L : scipy.sparse.csr_matrix, shape (n, n), float64
+
+    Raises
+    ------
+    InputError
+        No faces, or a face of zero area (its cotangents are infinite).
+
+    Examples
+    --------
+    Two right isosceles triangles forming the unit square:
+
+    >>> V = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]]
+    >>> cotangent_laplacian(V, [[0, 1, 2], [1, 3, 2]]).toarray()[0].tolist()
+    [-1.0, 0.5, 0.5, 0.0]
+    """
+    V = as_vertices(V)
+    F = as_faces(F, len(V))
+    if len(F) == 0:
+        raise InputError(
+            "the cotangent Laplacian needs a mesh with faces, got a point cloud"
+        )
+    n_flat = int(np.count_nonzero(face_areas(V, F) == 0.0))
+    if n_flat:
+        raise InputError(
+            f"{n_flat} face(s) have zero area; their cotangent weights are infinite "
+            "(remove degenerate faces first)"
+        )
+    L = scipy.sparse.csr_matrix(igl.cotmatrix(V, F), dtype=np.float64)
+    if not np.isfinite(L.data).all():
+        raise InputError(
+            "cotangent weights are not finite: the mesh has near-degenerate faces"
+        )
+    return L
+
+
+# ------------------------------------------------------------------------ normalisation
+
+
+def normalize(V: ArrayLike) -> tuple[np.ndarray, np.ndarray, float]:
+    """Map a shape into the paper's frame: bounding box centred, largest half-extent 1.
+
+    Parameters
+    ----------
+    V : array_like, shape (n, 3), float
+        Vertex positions.
+
+    Returns
+    -------
+    Vn : numpy.ndarray, shape (n, 3), float64
+        ``(V - center) / scale``; it fits ``[-1, 1]^3`` and touches the box on the
+        longest axis.
+    center : numpy.ndarray, shape (3,), float64
+        Bounding-box centre of ``V``.
+    scale : float
+        Largest half-extent of the bounding box of ``V``.
+
+    Raises
+    ------
+    InputError
+        All points coincide (zero extent), or bad input.
+
+    Examples
+    --------
+    >>> Vn, c, s = normalize([[0, 0, 0], [4, 2, 0]])
+    >>> Vn.tolist(), c.tolist(), s
+    ([[-1.0, -0.5, 0.0], [1.0, 0.5, 0.0]], [2.0, 1.0, 0.0], 2.0)
+    """
+    V = as_vertices(V)
+    lo, hi = V.min(axis=0), V.max(axis=0)
+    center = 0.5 * (lo + hi)
+    scale = float(0.5 * np.max(hi - lo))
+    if not scale > 0.0:
+        raise InputError(
+            "cannot normalise a shape whose points all coincide (zero extent)"
+        )
+    return (V - center) / scale, center, scale
+
+
+def denormalize(Vn: ArrayLike, center: ArrayLike, scale: float) -> np.ndarray:
+    """Inverse of :func:`normalize`: ``Vn * scale + center``.
+
+    Parameters
+    ----------
+    Vn : array_like, shape (n, 3), float
+        Points in the normalised frame.
+    center : array_like, shape (3,), float
+        Centre returned by :func:`normalize`.
+    scale : float
+        Scale returned by :func:`normalize`; finite and positive.
+
+    Returns
+    -------
+    V : numpy.ndarray, shape (n, 3), float64
+
+    Examples
+    --------
+    >>> denormalize([[1.0, 0.5, 0.0]], [2.0, 1.0, 0.0], 2.0).tolist()
+    [[4.0, 2.0, 0.0]]
+    """
+    Vn = as_vertices(Vn, "Vn")
+    center = np.asarray(center, dtype=np.float64)
+    if center.shape != (3,) or not np.isfinite(center).all():
+        raise InputError(f"center must be 3 finite numbers, got shape {center.shape}")
+    scale = float(scale)
+    if not (np.isfinite(scale) and scale > 0.0):
+        raise InputError(f"scale must be finite and positive, got {scale}")
+    return Vn * scale + center
+
+
+# ------------------------------------------------------------------------------ sampling
+
+
+def sample_surface(
+    V: ArrayLike, F: ArrayLike, n: int, seed: int = 0, return_faces: bool = False
+) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+    """Sample points uniformly by area on a triangle mesh (seeded).
+
+    A face is chosen with probability proportional to its area, then a point uniformly
+    inside it (``trimesh.sample.sample_surface``, driven by
+    ``numpy.random.default_rng(seed)``; the global random state is not used).
+
+    Parameters
+    ----------
+    V : array_like, shape (v, 3), float
+        Vertex positions.
+    F : array_like, shape (m, 3), int
+        Triangles, ``m >= 1``, with positive total area.
+    n : int
+        Number of points, ``n >= 0``.
+    seed : int, optional
+        Seed; the same inputs and seed give the same points.
+    return_faces : bool, optional
+        Also return the face each point lies on.
+
+    Returns
+    -------
+    points : numpy.ndarray, shape (n, 3), float64
+    faces : numpy.ndarray, shape (n,), int64
+        Only when ``return_faces`` is True: index into ``F`` of each point's face.
+
+    Raises
+    ------
+    InputError
+        No faces, zero total area, negative ``n``, or bad input.
+
+    Examples
+    --------
+    >>> P, fi = sample_surface([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]], 4,
+    ...                        return_faces=True)
+    >>> P.shape, fi.tolist()
+    ((4, 3), [0, 0, 0, 0])
+    """
+    V = as_vertices(V)
+    F = as_faces(F, len(V))
+    n = _check_count(n, "n", 0)
+    if len(F) == 0:
+        raise InputError("cannot sample the surface of a point cloud (no faces)")
+    if not face_areas(V, F).sum() > 0.0:
+        raise InputError("cannot sample a surface of zero total area")
+    mesh = trimesh.Trimesh(vertices=V, faces=F, process=False, validate=False)
+    points, face_index = trimesh.sample.sample_surface(
+        mesh, n, seed=np.random.default_rng(seed)
+    )
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    if return_faces:
+        return points, np.asarray(face_index, dtype=np.int64)
+    return points
+
+
+# ------------------------------------------------------------------------ neighbourhoods
+
+
+class Neighborhoods(NamedTuple):
+    """Fixed-size (padded) neighbourhood of every vertex.
+
+    Attributes
+    ----------
+    index : numpy.ndarray, shape (n, m), int64
+        ``index[i]`` lists vertex ``i`` itself and its neighbours; padding slots hold
+        ``i`` again, so ``V[index]`` is always valid.
+    mask : numpy.ndarray, shape (n, m), bool
+        True for real members, False for padding.
+
+    Notes
+    -----
+    Gather the members of all neighbourhoods of (possibly moved) vertices ``X`` with
+    ``X[nb.index]`` (shape ``(n, m, 3)``) and weight by ``nb.mask``.
+    """
+
+    index: np.ndarray
+    mask: np.ndarray
+
+    @property
+    def counts(self) -> np.ndarray:
+        """Number of members of each neighbourhood, shape (n,), int64."""
+        return self.mask.sum(axis=1).astype(np.int64)
+
+
+def _one_ring(n: int, F: np.ndarray) -> Neighborhoods:
+    """Vertex itself (column 0) plus its one-ring neighbours, sorted by index."""
+    i = F[:, [0, 1, 2, 1, 2, 0]].ravel()
+    j = F[:, [1, 2, 0, 0, 1, 2]].ravel()
+    off = i != j
+    A = scipy.sparse.coo_matrix(
+        (np.ones(off.sum()), (i[off], j[off])), shape=(n, n)
+    ).tocsr()
+    A.sum_duplicates()
+    A.sort_indices()
+    degree = np.diff(A.indptr)
+    rows = np.repeat(np.arange(n), degree)
+    cols = 1 + np.arange(A.nnz) - A.indptr[rows]
+    index = np.repeat(
+        np.arange(n, dtype=np.int64)[:, None], 1 + degree.max(initial=0), axis=1
+    )
+    mask = np.zeros(index.shape, dtype=bool)
+    mask[:, 0] = True
+    index[rows, cols] = A.indices
+    mask[rows, cols] = True
+    return Neighborhoods(index, mask)
+
+
+def _knn(V: np.ndarray, k: int) -> Neighborhoods:
+    """The k nearest points of each point, always including the point itself."""
+    k = min(k, len(V))
+    _, index = cKDTree(V).query(V, k=k)
+    index = np.asarray(index, dtype=np.int64).reshape(len(V), k)
+    own = np.arange(len(V))
+    missing = ~(index == own[:, None]).any(axis=1)  # only with > k coincident points
+    index[missing, -1] = own[missing]
+    return Neighborhoods(index, np.ones(index.shape, dtype=bool))
+
+
+def vertex_neighborhoods(
+    V: ArrayLike, F: ArrayLike | None = None, k: int = 16
+) -> Neighborhoods:
+    """Neighbourhood of each vertex: its one-ring on a mesh, its k nearest in a cloud.
+
+    Parameters
+    ----------
+    V : array_like, shape (n, 3), float
+        Vertex positions.
+    F : array_like, shape (f, 3), int, or None
+        Triangles. With faces, the neighbourhood of ``i`` is ``i`` plus every vertex
+        sharing an edge with it (``k`` is ignored). Without faces (``None`` or empty) it
+        is the ``min(k, n)`` nearest points, ``i`` included.
+    k : int, optional
+        Neighbourhood size for point clouds, ``k >= 1``.
+
+    Returns
+    -------
+    Neighborhoods
+        Padded ``(index, mask)`` arrays of shape ``(n, m)``; see :class:`Neighborhoods`.
+        For meshes ``index[:, 0]`` is the vertex itself and the neighbours follow in
+        increasing order; ``m`` is 1 + the largest vertex degree.
+
+    Examples
+    --------
+    >>> V = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]]
+    >>> nb = vertex_neighborhoods(V, [[0, 1, 2], [1, 3, 2]])
+    >>> nb.index[0].tolist(), nb.mask[0].tolist()
+    ([0, 1, 2, 0], [True, True, True, False])
+    """
+    V = as_vertices(V)
+    F = as_faces(F, len(V))
+    if len(F):
+        return _one_ring(len(V), F)
+    return _knn(V, _check_count(k, "k", 1))
+
+
+def _as_neighborhoods(neighborhoods, n: int) -> Neighborhoods:
+    """Validate an ``(index, mask)`` pair against ``n`` vertices."""
+    try:
+        index, mask = neighborhoods
+    except (TypeError, ValueError):
+        raise InputError("neighborhoods must be an (index, mask) pair") from None
+    index = np.asarray(index)
+    mask = np.asarray(mask, dtype=bool)
+    if index.ndim != 2 or index.shape[0] != n or mask.shape != index.shape:
+        raise InputError(
+            f"neighborhoods must be (n, m) arrays with n = {n}, "
+            f"got index {index.shape} and mask {mask.shape}"
+        )
+    if index.dtype.kind not in "iu" or index.min() < 0 or index.max() >= n:
+        raise InputError(f"neighborhood indices must be integers in [0, {n})")
+    if not mask.any(axis=1).all():
+        raise InputError("every neighborhood must have at least one member")
+    return Neighborhoods(index.astype(np.int64, copy=False), mask)
+
+
+# ------------------------------------------------------------------------------ planes
+
+
+def _planes_chunk(V: np.ndarray, index: np.ndarray, mask: np.ndarray):
+    """PCA planes of one block of neighbourhoods; see :func:`pca_planes`."""
+    w = mask[:, :, None].astype(np.float64)
+    P = V[index]
+    count = w.sum(axis=1)
+    centroid = (P * w).sum(axis=1) / count
+    D = (P - centroid[:, None, :]) * w
+    cov = np.einsum("nki,nkj->nij", D, D) / count[:, :, None]
+    _, vecs = np.linalg.eigh(cov)
+    return vecs[:, :, 0], centroid
+
+
+def pca_planes(V: ArrayLike, neighborhoods) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares plane of every neighbourhood, evaluated on the given positions.
+
+    The plane of vertex ``i`` passes through the centroid of its neighbourhood and has
+    as normal the eigenvector of the smallest eigenvalue of the neighbourhood's
+    covariance (``numpy.linalg.eigh`` on a stack of 3x3 matrices). The neighbourhoods are
+    only indices, so ``V`` may be moved vertices with neighbourhoods computed once on
+    the rest shape.
+
+    Parameters
+    ----------
+    V : array_like, shape (n, 3), float
+        Vertex positions (rest or deformed).
+    neighborhoods : Neighborhoods or (index, mask) pair of (n, m) arrays
+        From :func:`vertex_neighborhoods`.
+
+    Returns
+    -------
+    normals : numpy.ndarray, shape (n, 3), float64
+        Unit normals with arbitrary sign (see :func:`orient_normals`).
+    centroids : numpy.ndarray, shape (n, 3), float64
+        Centroid of each neighbourhood.
+
+    Examples
+    --------
+    >>> V = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]]
+    >>> nb = vertex_neighborhoods(V, k=4)
+    >>> normals, centroids = pca_planes(V, nb)
+    >>> abs(normals[:, 2]).tolist(), centroids[0].tolist()
+    ([1.0, 1.0, 1.0, 1.0], [0.5, 0.5, 0.0])
+    """
+    V = as_vertices(V)
+    nb = _as_neighborhoods(neighborhoods, len(V))
+    normals = np.empty_like(V)
+    centroids = np.empty_like(V)
+    for start in range(0, len(V), _PLANE_CHUNK):
+        rows = slice(start, start + _PLANE_CHUNK)
+        normals[rows], centroids[rows] = _planes_chunk(V, nb.index[rows], nb.mask[rows])
+    return normals, centroids
+
+
+def orient_normals(
+    normals: ArrayLike, V: ArrayLike, F: ArrayLike | None = None
+) -> np.ndarray:
+    """Flip normals to agree with the mesh's orientation, or to point away from the centroid.
+
+    Parameters
+    ----------
+    normals : array_like, shape (n, 3), float
+        Normals of arbitrary sign, one per vertex.
+    V : array_like, shape (n, 3), float
+        Vertex positions.
+    F : array_like, shape (m, 3), int, or None
+        Triangles. With faces, each normal is flipped when it points against the
+        area-weighted vertex normal (``igl.per_vertex_normals``). Without faces, and for
+        vertices touching no face of positive area, it is flipped when it points toward
+        the centroid of ``V`` (a heuristic, right for star-shaped shapes).
+
+    Returns
+    -------
+    oriented : numpy.ndarray, shape (n, 3), float64
+
+    Examples
+    --------
+    >>> n = orient_normals([[0, 0, -1.0], [0, 0, 1.0]], [[0, 0, 1.0], [0, 0, -1.0]])
+    >>> n[:, 2].tolist()
+    [1.0, -1.0]
+    """
+    V = as_vertices(V)
+    F = as_faces(F, len(V))
+    normals = as_vertices(normals, "normals").copy()
+    if normals.shape != V.shape:
+        raise InputError(f"normals must have shape {V.shape}, got {normals.shape}")
+    reference = V - V.mean(axis=0)
+    if len(F):
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mesh_normals = igl.per_vertex_normals(
+                V, F, igl.PER_VERTEX_NORMALS_WEIGHTING_TYPE_AREA
+            )
+        good = np.isfinite(mesh_normals).all(axis=1)
+        reference[good] = mesh_normals[good]
+    flip = np.einsum("ij,ij->i", normals, reference) < 0.0
+    normals[flip] *= -1.0
+    return normals
+
+
+def _oriented_planes(V, F, k, neighborhoods):
+    """Shared body of :func:`pca_normals` and :func:`point_to_plane`."""
+    V = as_vertices(V)
+    F = as_faces(F, len(V))
+    if neighborhoods is None:
+        neighborhoods = vertex_neighborhoods(V, F, k)
+    normals, centroids = pca_planes(V, neighborhoods)
+    return V, orient_normals(normals, V, F), centroids
+
+
+def pca_normals(
+    V: ArrayLike, F: ArrayLike | None = None, k: int = 16, neighborhoods=None
+) -> np.ndarray:
+    """Unit normal of every vertex from PCA of its neighbourhood, consistently signed.
+
+    Parameters
+    ----------
+    V : array_like, shape (n, 3), float
+        Vertex positions.
+    F : array_like, shape (m, 3), int, or None
+        Triangles; defines the one-ring neighbourhoods and the sign (outward for a
+        consistently oriented closed mesh). ``None`` or empty: a point cloud, k nearest
+        neighbours and normals pointing away from the centroid (heuristic).
+    k : int, optional
+        Neighbourhood size for point clouds.
+    neighborhoods : Neighborhoods, optional
+        Precomputed neighbourhoods (then ``k`` is ignored and ``F`` only sets the sign).
+
+    Returns
+    -------
+    normals : numpy.ndarray, shape (n, 3), float64
+        Unit vectors.
+
+    Examples
+    --------
+    >>> V = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]]
+    >>> pca_normals(V, [[0, 1, 2], [1, 3, 2]])[0].tolist()
+    [0.0, 0.0, 1.0]
+    """
+    return _oriented_planes(V, F, k, neighborhoods)[1]
+
+
+def point_to_plane(
+    V: ArrayLike, F: ArrayLike | None = None, k: int = 16, neighborhoods=None
+) -> np.ndarray:
+    """Signed distance of every vertex to the PCA plane of its neighbourhood.
+
+    The plane passes through the neighbourhood's centroid with the normal of
+    :func:`pca_normals` (same sign convention); the distance is positive on the side the
+    normal points to.
+
+    Parameters
+    ----------
+    V : array_like, shape (n, 3), float
+        Vertex positions.
+    F : array_like, shape (m, 3), int, or None
+        Triangles (one-ring neighbourhoods) or ``None`` for a point cloud.
+    k : int, optional
+        Neighbourhood size for point clouds.
+    neighborhoods : Neighborhoods, optional
+        Precomputed neighbourhoods.
+
+    Returns
+    -------
+    distance : numpy.ndarray, shape (n,), float64
+
+    Examples
+    --------
+    >>> V = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]]
+    >>> point_to_plane(V, [[0, 1, 2], [1, 3, 2]]).tolist()
+    [0.0, 0.0, 0.0, 0.0]
+    """
+    V, normals, centroids = _oriented_planes(V, F, k, neighborhoods)
+    return np.einsum("ij,ij->i", V - centroids, normals)

@@ -1,0 +1,76 @@
+"""Cage validation, orientation, topology and the enclosure test."""
+
+import numpy as np
+import pytest
+
+from cagekit import CageError
+from cagekit.cage import cage_encloses, cage_topology, check_cage, signed_volume, winding_numbers
+from cagekit.shapes import box_cage, icosphere_cage
+
+
+def test_topology_edges_and_signs():
+    v, f = box_cage(2)
+    t = cage_topology(f)
+    assert len(t.edges) == 3 * len(f) // 2  # closed triangle mesh: e = 3m/2
+    assert np.all(t.edges[:, 0] < t.edges[:, 1])
+    # each face's directed edges map back to its vertices with the recorded signs
+    for face, idx, sgn in zip(f, t.face_edges, t.face_edge_signs):
+        for r in range(3):
+            a, b = face[r], face[(r + 1) % 3]
+            lo, hi = t.edges[idx[r]]
+            assert (lo, hi) == (min(a, b), max(a, b))
+            assert sgn[r] == (1.0 if a < b else -1.0)
+
+
+@pytest.mark.parametrize("cage", [box_cage(1), box_cage(3), icosphere_cage(2)])
+def test_primitives_are_valid_and_outward(cage):
+    v, f = cage
+    assert signed_volume(v, f) > 0
+    assert np.array_equal(check_cage(v, f), f)
+    assert np.array_equal(check_cage(v, f[:, ::-1]), f)
+
+
+def test_box_volume():
+    v, f = box_cage(2, half_extent=(1.0, 2.0, 0.5))
+    assert signed_volume(v, f) == pytest.approx(8.0)
+    assert signed_volume(v, f[:, ::-1]) == pytest.approx(-8.0)
+
+
+def test_two_components_oriented_separately():
+    v1, f1 = box_cage(1)
+    v2, f2 = icosphere_cage(1)
+    v = np.vstack([v1, v2 * 0.5 + [5.0, 0, 0]])
+    f = np.vstack([f1, f2[:, ::-1] + len(v1)])  # second component inward
+    out = check_cage(v, f)
+    assert np.array_equal(out[: len(f1)], f1)
+    assert np.array_equal(out[len(f1):], f2 + len(v1))
+
+
+@pytest.mark.parametrize("breaker, message", [
+    (lambda v, f: (v, f[:-1]), "open"),
+    (lambda v, f: (v, np.vstack([f, f[:2]])), "manifold"),
+    (lambda v, f: (v, np.vstack([f[:1, ::-1], f[1:]])), "oriented"),
+    (lambda v, f: (v, np.vstack([[[0, 0, 1]], f[1:]])), "repeats a vertex"),
+    (lambda v, f: (v, f - 1), "out of range"),
+    (lambda v, f: (v * [1, 1, 0], f), "zero volume"),
+    (lambda v, f: (np.where(v == 1.0, np.nan, v), f), "non-finite"),
+    (lambda v, f: (v[:, :2], f), "(k, 3)"),
+    (lambda v, f: (v, f.astype(float)), "integer"),
+])
+def test_invalid_cages_raise(breaker, message):
+    v, f = box_cage(1)
+    bv, bf = breaker(v, f)
+    with pytest.raises(CageError, match=message.replace("(", r"\(").replace(")", r"\)")) as err:
+        check_cage(bv, bf, name="mycage.obj")
+    assert str(err.value).startswith("mycage.obj: ")
+
+
+def test_winding_numbers_and_enclosure():
+    v, f = icosphere_cage(2)
+    p = np.array([[0.0, 0, 0], [0.5, 0.1, 0], [2.0, 0, 0], [0, 0, -1.5]])
+    wn = winding_numbers(p, v, f)
+    np.testing.assert_allclose(wn, [1, 1, 0, 0], atol=1e-9)
+    assert cage_encloses(p[:2], v, f)
+    assert not cage_encloses(p, v, f)
+    # a vertex of the cage counts as enclosed (on the surface)
+    assert cage_encloses(v[:1] * 0.999999, v, f)

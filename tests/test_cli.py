@@ -1,0 +1,335 @@
+"""End-to-end tests of the ``cagekit`` command line, run as a subprocess."""
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+EXAMPLE = os.path.join(ROOT, "data", "example")
+SHAPE = os.path.join(EXAMPLE, "shape.obj")
+CAGE = os.path.join(EXAMPLE, "cage.obj")
+DEFORMED = os.path.join(EXAMPLE, "cage_deformed.obj")
+
+
+def cagekit(*args, cwd=None, stderr=subprocess.PIPE):
+    """Run ``python -m cagekit.cli ARGS``; return the CompletedProcess (text mode)."""
+    env = dict(os.environ)
+    env.pop("CAGEKIT_DEBUG", None)
+    env["PYTHONPATH"] = ROOT + os.pathsep + env.get("PYTHONPATH", "")
+    return subprocess.run(
+        [sys.executable, "-m", "cagekit.cli", *map(str, args)],
+        stdout=subprocess.PIPE, stderr=stderr, text=True, cwd=cwd, env=env, timeout=300,
+        check=False,
+    )
+
+
+def load_obj(path):
+    from cagekit.io import load_mesh
+
+    return load_mesh(path)
+
+
+def assert_bad_input(result, *names):
+    """Exit 2, exactly one line on stderr naming the file(s), no traceback, no stdout."""
+    assert result.returncode == 2, (result.returncode, result.stderr)
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    assert "Traceback" not in result.stderr
+    for name in names:
+        assert str(name) in lines[0], (name, lines[0])
+    assert result.stdout == ""
+
+
+@pytest.fixture(scope="module")
+def applied(tmp_path_factory):
+    """The bundled example deformed once through the command line, with --json."""
+    out = tmp_path_factory.mktemp("apply") / "deformed.obj"
+    result = cagekit("apply", SHAPE, CAGE, DEFORMED, "-o", out, "--json")
+    return out, result
+
+
+# ---------------------------------------------------------------------------------- help
+
+
+@pytest.mark.parametrize("command", [[], ["apply"], ["eval"], ["render"]])
+def test_help(command):
+    result = cagekit(*command, "--help")
+    assert result.returncode == 0, result.stderr
+    assert "Usage:" in result.stdout
+    if not command:
+        for name in ("apply", "eval", "render"):
+            assert name in result.stdout
+
+
+def test_version():
+    from cagekit import __version__
+
+    result = cagekit("--version")
+    assert result.returncode == 0
+    assert __version__ in result.stdout
+
+
+def test_no_arguments_shows_help():
+    result = cagekit()
+    assert result.returncode == 0
+    assert "Commands:" in result.stdout
+
+
+def test_unknown_command_is_one_line():
+    result = cagekit("frobnicate")
+    assert_bad_input(result, "frobnicate")
+
+
+def test_missing_argument_is_one_line():
+    result = cagekit("apply", SHAPE)
+    assert_bad_input(result, "CAGE")
+
+
+# --------------------------------------------------------------------------------- apply
+
+
+def test_apply_example(applied):
+    from cagekit.coords import bind
+
+    out, result = applied
+    assert result.returncode == 0, result.stderr
+    assert result.stderr == ""
+    info = json.loads(result.stdout)  # one JSON object and nothing else
+    V, F = load_obj(SHAPE)
+    CV, CF = load_obj(CAGE)
+    DV, _ = load_obj(DEFORMED)
+    assert info["output"] == str(out)
+    assert info["n_points"] == len(V)
+    assert info["n_cage_vertices"] == len(CV)
+    assert info["encloses"] is True
+    assert set(info["seconds"]) >= {"bind", "write"}
+
+    OV, OF = load_obj(out)
+    assert OV.shape == V.shape
+    assert np.array_equal(OF, F)
+    assert np.abs(OV - V).max() > 0.1  # it really moved
+    b = bind(V[:1], CV, CF)
+    assert np.allclose(OV[0], b.weights[0] @ DV, rtol=0, atol=1e-12)
+    assert np.allclose(OV[:1], b.deform(DV), rtol=0, atol=1e-12)
+
+
+def test_apply_undeformed_cage_reproduces_shape(tmp_path):
+    out = tmp_path / "same.obj"
+    result = cagekit("apply", SHAPE, CAGE, CAGE, "-o", out)
+    assert result.returncode == 0, result.stderr
+    assert str(out) in result.stdout
+    V, F = load_obj(SHAPE)
+    OV, OF = load_obj(out)
+    diagonal = np.linalg.norm(V.max(axis=0) - V.min(axis=0))
+    assert np.abs(OV - V).max() <= 1e-9 * diagonal
+    assert np.array_equal(OF, F)
+
+
+def test_apply_point_cloud_and_vertex_only_deformed_cage(tmp_path):
+    from cagekit.io import save_points
+
+    V, _ = load_obj(SHAPE)
+    DV, _ = load_obj(DEFORMED)
+    cloud = tmp_path / "cloud.xyz"
+    save_points(cloud, V[::7])
+    moved = tmp_path / "moved_cage.npy"
+    np.save(moved, DV)
+    out = tmp_path / "cloud_deformed.xyz"
+    result = cagekit("apply", cloud, CAGE, moved, "-o", out, "--json")
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout)["n_points"] == len(V[::7])
+    mesh_out = tmp_path / "mesh_deformed.obj"
+    assert cagekit("apply", SHAPE, CAGE, DEFORMED, "-o", mesh_out).returncode == 0
+    from cagekit.io import load_shape
+
+    P, PF = load_shape(out)
+    assert len(PF) == 0
+    assert np.allclose(P, load_obj(mesh_out)[0][::7], rtol=0, atol=1e-12)
+    # a mesh written to a point-cloud format keeps its (deformed) vertices only
+    npy_out = tmp_path / "mesh_vertices.npy"
+    assert cagekit("apply", SHAPE, CAGE, DEFORMED, "-o", npy_out).returncode == 0
+    assert np.array_equal(np.load(npy_out), load_obj(mesh_out)[0])
+
+
+def test_apply_warns_when_cage_does_not_enclose(tmp_path):
+    from cagekit.io import save_mesh
+
+    CV, CF = load_obj(CAGE)
+    small = tmp_path / "small_cage.obj"
+    save_mesh(small, CV * 0.5, CF)
+    out = tmp_path / "out.obj"
+    result = cagekit("apply", SHAPE, small, small, "-o", out, "--json")
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout)["encloses"] is False
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "warning" in lines[0] and "small_cage.obj" in lines[0]
+
+
+def test_progress_bar_only_on_a_terminal(tmp_path):
+    import pty
+
+    V, _ = load_obj(SHAPE)
+    rng = np.random.default_rng(0)
+    cloud = tmp_path / "many.npy"
+    np.save(cloud, V[rng.integers(0, len(V), 45_000)] * 0.9)
+    out = tmp_path / "many_out.npy"
+
+    plain = cagekit("apply", cloud, CAGE, DEFORMED, "-o", out)
+    assert plain.returncode == 0
+    assert plain.stderr == ""
+
+    master, slave = pty.openpty()
+    try:
+        result = cagekit("apply", cloud, CAGE, DEFORMED, "-o", out, "--json", stderr=slave)
+        os.close(slave)
+        chunks = []
+        while True:
+            try:
+                data = os.read(master, 65536)
+            except OSError:
+                break
+            if not data:
+                break
+            chunks.append(data)
+    finally:
+        os.close(master)
+    assert result.returncode == 0
+    assert "binding" in b"".join(chunks).decode(errors="replace")
+    json.loads(result.stdout)  # the bar went to stderr only
+
+
+# ------------------------------------------------------------------------- eval / render
+
+
+def test_eval_identical_is_zero():
+    result = cagekit("eval", SHAPE, SHAPE, SHAPE, "--json", "--samples", "2000")
+    assert result.returncode == 0, result.stderr
+    info = json.loads(result.stdout)
+    assert info["cd"] == pytest.approx(0.0, abs=1e-12)
+    assert info["dcotlap"] == pytest.approx(0.0, abs=1e-12)
+    assert {"cd_x1e2", "dcotlap_x1e3"} <= set(info)
+
+
+def test_eval_deformed_table(applied):
+    out, _ = applied
+    result = cagekit("eval", SHAPE, SHAPE, out, "--samples", "1000", "--seed", "3")
+    assert result.returncode == 0, result.stderr
+    assert "CD" in result.stdout and "dCotLap" in result.stdout
+    again = cagekit("eval", SHAPE, SHAPE, out, "--samples", "1000", "--seed", "3")
+    assert again.stdout == result.stdout  # seeded
+
+
+def test_render_png(tmp_path, applied):
+    from matplotlib.image import imread
+
+    out, _ = applied
+    png = tmp_path / "demo.png"
+    result = cagekit("render", SHAPE, out, "--cage", CAGE, "--cage", DEFORMED, "-o", png,
+                     "--size", "200x180", "--title", "before", "--title", "after")
+    assert result.returncode == 0, result.stderr
+    img = imread(png)
+    assert img.shape[:2] == (180, 400)
+    assert img[..., :3].std() > 0.05
+
+
+def test_render_fewer_cages_than_meshes(tmp_path):
+    png = tmp_path / "one_cage.png"
+    result = cagekit("render", SHAPE, SHAPE, "--cage", CAGE, "-o", png, "--size", "100")
+    assert result.returncode == 0, result.stderr
+    assert png.stat().st_size > 0
+
+
+# ------------------------------------------------------------------------------ bad input
+
+
+@pytest.fixture
+def bad_files(tmp_path):
+    """A folder with a copy of the example and several broken files."""
+    from cagekit.io import save_mesh, save_points
+
+    CV, CF = load_obj(CAGE)
+    shutil.copy(SHAPE, tmp_path / "shape.obj")
+    with open(SHAPE) as fh:
+        lines = fh.read().splitlines()
+    first_v = next(i for i, line in enumerate(lines) if line.startswith("v "))
+    lines[first_v] = "v nan 0 0"
+    (tmp_path / "nan.obj").write_text("\n".join(lines) + "\n")
+    save_mesh(tmp_path / "open_cage.obj", CV, CF[1:])  # one face removed
+    save_points(tmp_path / "short_cage.xyz", CV[:-1])  # one vertex too few
+    from cagekit.shapes import box_cage
+
+    bv, bf = box_cage()
+    save_mesh(tmp_path / "box_cage.obj", np.asarray(bv) * 3, bf)  # a valid, other cage
+    (tmp_path / "empty.obj").write_text("")
+    (tmp_path / "one_point.xyz").write_text("1 2 3\n")
+    shutil.copy(SHAPE, tmp_path / "shape.foo")
+    return tmp_path
+
+
+@pytest.mark.parametrize(
+    "args, names",
+    [
+        (["apply", "missing.obj", CAGE, DEFORMED, "-o", "x.obj"], ["missing.obj"]),
+        (["apply", "nan.obj", CAGE, DEFORMED, "-o", "x.obj"], ["nan.obj"]),
+        (["apply", "shape.obj", CAGE, "short_cage.xyz", "-o", "x.obj"],
+         ["short_cage.xyz", "cage.obj"]),
+        (["apply", "shape.obj", CAGE, "box_cage.obj", "-o", "x.obj"],
+         ["box_cage.obj", "cage.obj"]),
+        (["apply", "shape.obj", "open_cage.obj", "open_cage.obj", "-o", "x.obj"],
+         ["open_cage.obj"]),
+        (["apply", "empty.obj", CAGE, DEFORMED, "-o", "x.obj"], ["empty.obj"]),
+        (["apply", "shape.foo", CAGE, DEFORMED, "-o", "x.obj"], ["shape.foo"]),
+        (["apply", "shape.obj", CAGE, DEFORMED, "-o", "x.foo"], ["x.foo"]),
+        (["apply", "shape.obj", CAGE, DEFORMED, "-o", "no_such_folder/x.obj"],
+         ["no_such_folder"]),
+        (["apply", "shape.obj", CAGE, "open_cage.obj", "-o", "x.obj"], ["open_cage.obj"]),
+        (["eval", "shape.obj", "shape.obj", "short_cage.xyz"], ["short_cage.xyz"]),
+        (["eval", "missing.obj", "shape.obj", "shape.obj"], ["missing.obj"]),
+        (["eval", "shape.obj", "one_point.xyz", "shape.obj"], ["one_point.xyz"]),
+        (["render", "nan.obj", "-o", "x.png"], ["nan.obj"]),
+        (["render", "shape.obj", "-o", "x.jpg"], ["x.jpg"]),
+        (["render", "shape.obj", "--cage", "missing_cage.obj", "-o", "x.png"],
+         ["missing_cage.obj"]),
+        (["render", "shape.obj", "-o", "no_such_folder/x.png"], ["no_such_folder"]),
+    ],
+)
+def test_bad_input_exits_2_with_one_line(bad_files, args, names):
+    result = cagekit(*args, cwd=bad_files)
+    assert_bad_input(result, *names)
+    assert not (bad_files / "x.obj").exists()
+    assert not [p for p in os.listdir(bad_files) if ".tmp" in p]  # no temporary left over
+
+
+@pytest.mark.parametrize("spelling", ["shape.obj", "./sub/../shape.obj", "link.obj"])
+def test_apply_refuses_to_overwrite_an_input(bad_files, spelling):
+    (bad_files / "sub").mkdir()
+    os.symlink(bad_files / "shape.obj", bad_files / "link.obj")
+    before = (bad_files / "shape.obj").read_bytes()
+    result = cagekit("apply", "shape.obj", CAGE, DEFORMED, "-o", spelling, cwd=bad_files)
+    assert_bad_input(result, spelling, "overwrite")
+    assert (bad_files / "shape.obj").read_bytes() == before
+
+
+def test_render_refuses_to_overwrite_an_input(bad_files):
+    cage = bad_files / "cage.png"  # an odd name, but an input all the same
+    shutil.copy(CAGE, bad_files / "cage.obj")
+    before = (bad_files / "cage.obj").read_bytes()
+    result = cagekit("render", "shape.obj", "--cage", "cage.obj", "-o", "cage.obj",
+                     cwd=bad_files)
+    assert_bad_input(result, "cage.obj")
+    assert (bad_files / "cage.obj").read_bytes() == before
+    assert not cage.exists()
+
+
+def test_debug_shows_traceback(bad_files):
+    for args in (["--debug", "apply", "nan.obj", CAGE, DEFORMED, "-o", "x.obj"],
+                 ["apply", "nan.obj", CAGE, DEFORMED, "-o", "x.obj", "--debug"]):
+        result = cagekit(*args, cwd=bad_files)
+        assert result.returncode == 2
+        assert "Traceback" in result.stderr
+        assert result.stderr.strip().splitlines()[-1].count("nan.obj") == 1

@@ -1,0 +1,260 @@
+"""Tests of cagekit.metrics against known answers (DESIGN.md, "Metrics")."""
+
+import numpy as np
+import pytest
+import trimesh
+from scipy.spatial.transform import Rotation
+
+from cagekit.errors import InputError
+from cagekit.geometry import cotangent_laplacian, normalize
+from cagekit.metrics import (
+    chamfer,
+    chamfer_distance,
+    dcotlap,
+    evaluate,
+    surface_samples,
+)
+
+
+def icosphere(subdivisions=2):
+    m = trimesh.creation.icosphere(subdivisions=subdivisions)
+    return np.asarray(m.vertices, dtype=float), np.asarray(m.faces, dtype=np.int64)
+
+
+def ellipsoid(axes=(1.0, 2.0, 0.5), offset=(0.0, 0.0, 0.0)):
+    V, F = icosphere()
+    return V * np.asarray(axes) + np.asarray(offset), F
+
+
+def lattice(n=6, spacing=1.0):
+    g = np.arange(n, dtype=float) * spacing
+    return np.stack(np.meshgrid(g, g, g, indexing="ij"), axis=-1).reshape(-1, 3)
+
+
+def bend(V, amount=0.3):
+    """Non-rigid deformation: bend along x."""
+    out = V.copy()
+    out[:, 2] += amount * V[:, 0] ** 2
+    return out
+
+
+# ------------------------------------------------------------------------ Chamfer
+
+
+def test_chamfer_distance_identical_sets_is_zero():
+    P = np.random.default_rng(0).normal(size=(500, 3))
+    assert chamfer_distance(P, P) == 0.0
+    assert chamfer_distance(P, P[::-1]) == 0.0
+
+
+def test_chamfer_distance_translated_copy_is_twice_squared_shift():
+    P = lattice()
+    t = np.array(
+        [0.01, -0.02, 0.015]
+    )  # |t| << spacing 1: each point's nearest is its copy
+    cd = chamfer_distance(P, P + t)
+    assert cd == pytest.approx(2 * t @ t, rel=1e-12)
+
+
+def test_chamfer_distance_known_asymmetric_sets_and_symmetry():
+    P = np.array([[0.0, 0, 0], [1, 0, 0]])
+    Q = np.array([[0.0, 0, 0], [1, 0, 0], [5, 0, 0]])
+    # P -> Q: 0; Q -> P: (0 + 0 + 16) / 3. Summed, not halved.
+    assert chamfer_distance(P, Q) == pytest.approx(16 / 3, rel=1e-15)
+    assert chamfer_distance(P, Q) == chamfer_distance(Q, P)
+    rng = np.random.default_rng(1)
+    A, B = rng.normal(size=(300, 3)), rng.normal(size=(200, 3)) + 0.5
+    assert chamfer_distance(A, B) == chamfer_distance(B, A)
+
+
+def test_chamfer_distance_rejects_bad_input():
+    with pytest.raises(InputError, match="NaN"):
+        chamfer_distance([[0, 0, np.nan]], [[0, 0, 0]])
+    with pytest.raises(InputError, match="no points"):
+        chamfer_distance(np.zeros((0, 3)), [[0, 0, 0]])
+    with pytest.raises(InputError, match="shape"):
+        chamfer_distance([[0, 0]], [[0, 0, 0]])
+
+
+def test_surface_samples_mesh_and_clouds():
+    V, F = ellipsoid()
+    S = surface_samples(V, F, n=1000, seed=3)
+    assert S.shape == (1000, 3)
+    np.testing.assert_array_equal(S, surface_samples(V, F, n=1000, seed=3))
+    # a small cloud is used as it is
+    np.testing.assert_array_equal(surface_samples(V, None, n=5000), V)
+    np.testing.assert_array_equal(
+        surface_samples(V, np.zeros((0, 3), int), n=len(V)), V
+    )
+    # a large cloud: a seeded subset of distinct points, in their original order
+    sub = surface_samples(V, None, n=50, seed=4)
+    assert sub.shape == (50, 3)
+    np.testing.assert_array_equal(sub, surface_samples(V, None, n=50, seed=4))
+    rows = [int(np.flatnonzero((V == p).all(1))[0]) for p in sub]
+    assert len(set(rows)) == 50 and rows == sorted(rows)
+
+
+def test_chamfer_of_surfaces_identical_symmetric_seeded():
+    Va, Fa = ellipsoid()
+    Vb, Fb = ellipsoid(axes=(1.1, 1.9, 0.6), offset=(0.05, 0, 0))
+    assert chamfer(Va, Fa, Va, Fa, n_samples=2000) == 0.0
+    ab = chamfer(Va, Fa, Vb, Fb, n_samples=2000, seed=5)
+    assert ab > 0
+    assert ab == chamfer(Vb, Fb, Va, Fa, n_samples=2000, seed=5)
+    assert ab == chamfer(Va, Fa, Vb, Fb, n_samples=2000, seed=5)
+    assert ab != chamfer(Va, Fa, Vb, Fb, n_samples=2000, seed=6)
+    # a mesh against a cloud of its own vertices: small but not zero
+    assert 0 < chamfer(Va, Fa, Va, None, n_samples=2000) < 0.05
+
+
+# ----------------------------------------------------------------------- dCotLap
+
+
+def test_dcotlap_translation_is_zero():
+    V, F = ellipsoid()
+    assert dcotlap(V, F, V) == 0.0
+    assert dcotlap(V, F, V + [3.0, -1.0, 0.25]) <= 1e-20
+
+
+def test_dcotlap_rotation_is_not_zero_and_matches_definition():
+    # L (R V + t - V) = L V (R^T - I): dCotLap is translation- but not rotation-invariant
+    V, F = ellipsoid()
+    R = Rotation.from_euler("z", 30, degrees=True).as_matrix()
+    out = V @ R.T + [0.5, 0.0, -0.2]
+    L = cotangent_laplacian(V, F)
+    expected = np.mean(((L @ V) @ (R.T - np.eye(3))) ** 2)
+    assert dcotlap(V, F, out) == pytest.approx(expected, rel=1e-10)
+    assert dcotlap(V, F, out) > 1e-6
+
+
+def test_dcotlap_nonrigid_bend_is_positive_and_quadratic():
+    V, F = ellipsoid()
+    d1 = dcotlap(V, F, bend(V, 0.1))
+    d2 = dcotlap(V, F, bend(V, 0.2))
+    assert d1 > 1e-6
+    assert d2 == pytest.approx(4 * d1, rel=1e-10)  # quadratic in the displacement
+    D = bend(V, 0.1) - V
+    assert dcotlap(V, F, V + D) == pytest.approx(dcotlap(V, F, V - D), rel=1e-12)
+
+
+def test_dcotlap_ignores_duplicate_faces_and_known_value():
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], dtype=float)
+    F = np.array([[0, 1, 2], [1, 3, 2]])
+    F_dup = np.vstack([F, F[:, ::-1], [[1, 2, 0]]])
+    out = V.copy()
+    out[0, 2] = 1.0  # lift vertex 0: L @ (out - V) has z-column (-1, .5, .5, 0)
+    expected = (1 + 0.25 + 0.25) / 12
+    assert dcotlap(V, F, out) == pytest.approx(expected, rel=1e-14)
+    assert dcotlap(V, F_dup, out) == dcotlap(V, F, out)
+
+
+def test_dcotlap_rejects_bad_input():
+    V, F = ellipsoid()
+    with pytest.raises(InputError, match="vertices"):
+        dcotlap(V, F, V[:-1])
+    with pytest.raises(InputError, match="faces"):
+        dcotlap(V, None, V)
+    with pytest.raises(InputError, match="NaN"):
+        dcotlap(V, F, np.full_like(V, np.nan))
+
+
+# ---------------------------------------------------------------------- evaluate
+
+
+def test_evaluate_keys_and_scaled_values():
+    src = ellipsoid()
+    tgt = ellipsoid(axes=(1.2, 1.8, 0.7), offset=(4.0, 0.0, 1.0))
+    m = evaluate(src, tgt, (bend(src[0], 0.2), src[1]), n_samples=1000, seed=2)
+    assert set(m) == {"cd", "dcotlap", "cd_x1e2", "dcotlap_x1e3", "n_samples", "seed"}
+    assert isinstance(m["cd"], float) and isinstance(m["dcotlap"], float)
+    assert m["cd_x1e2"] == pytest.approx(m["cd"] * 100)
+    assert m["dcotlap_x1e3"] == pytest.approx(m["dcotlap"] * 1000)
+    assert m["n_samples"] == 1000 and m["seed"] == 2
+    assert m["cd"] > 0 and m["dcotlap"] > 0
+
+
+def test_evaluate_target_as_deformed_gives_zero_cd():
+    src = ellipsoid()
+    tgt = ellipsoid(axes=(1.5, 1.0, 0.8), offset=(10.0, -3.0, 2.0))  # same topology
+    m = evaluate(src, tgt, tgt, n_samples=2000)
+    assert m["cd"] == 0.0  # same faces, same frame, same seed: identical samples
+    assert m["dcotlap"] > 0  # the target is a non-rigid deformation of the source
+
+
+def test_evaluate_similar_copy_scores_zero():
+    # deformed = uniformly scaled and translated source, used also as the target: both
+    # frames normalise it back onto the normalised source
+    src = ellipsoid()
+    moved = (3.0 * src[0] + [5.0, -2.0, 7.0], src[1])
+    m = evaluate(src, moved, moved, n_samples=2000)
+    assert m["cd"] == 0.0
+    assert m["dcotlap"] <= 1e-20
+
+
+def test_evaluate_pure_translation_has_zero_distortion():
+    src = ellipsoid()
+    shifted = (src[0] + [0.3, 0.0, 0.0], src[1])
+    m = evaluate(src, src, shifted, n_samples=2000)
+    assert m["dcotlap"] <= 1e-20
+    # CD is computed in the target's frame: the shift is divided by the target's scale
+    _, _, scale = normalize(src[0])
+    assert m["cd"] > 0.5 * (0.3 / scale) ** 2
+
+
+def test_evaluate_uses_target_frame_for_deformed_and_own_frame_for_source():
+    src = ellipsoid()
+    tgt = ellipsoid(axes=(1.3, 1.7, 0.9), offset=(1.0, 1.0, 1.0))
+    dfm = (bend(src[0], 0.2), src[1])
+    base = evaluate(src, tgt, dfm, n_samples=1000)
+    # moving and scaling the source alone changes nothing (it is normalised on its own)
+    src2 = (2.5 * src[0] - 4.0, src[1])
+    again = evaluate(src2, tgt, dfm, n_samples=1000)
+    assert again["cd"] == base["cd"]
+    assert again["dcotlap"] == pytest.approx(base["dcotlap"], rel=1e-9)
+    # the same similarity applied to target and deformed changes nothing
+    s, t = 7.0, np.array([-2.0, 3.0, 0.5])
+    sim = evaluate(
+        src, (s * tgt[0] + t, tgt[1]), (s * dfm[0] + t, dfm[1]), n_samples=1000
+    )
+    assert sim["cd"] == pytest.approx(base["cd"], rel=1e-9)
+    assert sim["dcotlap"] == pytest.approx(base["dcotlap"], rel=1e-9)
+    # scaling only the deformed shape changes both figures (it is not renormalised)
+    big = evaluate(src, tgt, (3.0 * dfm[0], dfm[1]), n_samples=1000)
+    assert big["cd"] > 2 * base["cd"] and big["dcotlap"] > base["dcotlap"]
+
+
+def test_evaluate_is_deterministic_and_seeded():
+    src = ellipsoid()
+    tgt = ellipsoid(axes=(1.2, 1.8, 0.7))
+    dfm = (bend(src[0], 0.1), src[1])
+    a = evaluate(src, tgt, dfm, n_samples=1000, seed=11)
+    assert a == evaluate(src, tgt, dfm, n_samples=1000, seed=11)
+    b = evaluate(src, tgt, dfm, n_samples=1000, seed=12)
+    assert a["cd"] != b["cd"] and a["dcotlap"] == b["dcotlap"]
+
+
+def test_evaluate_point_cloud_target_and_faceless_deformed():
+    src = ellipsoid()
+    tgt_mesh = ellipsoid(axes=(1.2, 1.8, 0.7))
+    cloud = trimesh.Trimesh(*tgt_mesh, process=False).sample(3000, seed=0)
+    dfm = (tgt_mesh[0], src[1])
+    m_cloud = evaluate(src, (cloud, None), dfm, n_samples=3000)
+    assert 0 < m_cloud["cd"] < 0.01  # same surface, different samples
+    with_faces = evaluate(src, tgt_mesh, dfm, n_samples=3000)
+    without = evaluate(src, tgt_mesh, (tgt_mesh[0], None), n_samples=3000)
+    assert with_faces == without  # missing deformed faces default to the source's
+
+
+def test_evaluate_rejects_bad_input():
+    src = ellipsoid()
+    tgt = ellipsoid(axes=(1.2, 1.8, 0.7))
+    with pytest.raises(InputError, match="vertices"):
+        evaluate(src, tgt, (src[0][:-1], None))
+    with pytest.raises(InputError, match="faces"):
+        evaluate((src[0], None), tgt, src)
+    with pytest.raises(InputError):
+        evaluate(src, tgt, src[0])
+    with pytest.raises(InputError, match="zero extent"):
+        evaluate(src, (np.ones((4, 3)), None), src)
+    with pytest.raises(InputError, match="NaN"):
+        evaluate(src, tgt, (np.full_like(src[0], np.nan), src[1]))

@@ -1,0 +1,197 @@
+"""Tests of cagekit.render and of the bundled example in data/example."""
+
+import os
+
+import numpy as np
+import pytest
+from matplotlib.image import imread
+
+from cagekit.render import MAX_FACES, render_meshes, unique_edges
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+EXAMPLE = os.path.join(ROOT, "data", "example")
+
+
+def read_obj(path):
+    """Minimal OBJ reader for the tests (vertices and triangle faces only)."""
+    V, F = [], []
+    with open(path) as fh:
+        for line in fh:
+            parts = line.split()
+            if not parts:
+                continue
+            if parts[0] == "v":
+                V.append([float(x) for x in parts[1:4]])
+            elif parts[0] == "f":
+                F.append([int(x.split("/")[0]) - 1 for x in parts[1:4]])
+    return np.array(V, dtype=np.float64), np.array(F, dtype=np.int64)
+
+
+def octahedron(scale=1.0):
+    V = scale * np.array(
+        [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=float
+    )
+    F = np.array(
+        [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]
+    )
+    return V, F
+
+
+def sphere(n_theta=40, n_phi=20):
+    """A UV sphere (closed, outward) with 2 * n_theta * (n_phi - 1) faces."""
+    import trimesh
+
+    m = trimesh.creation.uv_sphere(count=[n_phi, n_theta])
+    return np.asarray(m.vertices), np.asarray(m.faces, dtype=np.int64)
+
+
+def image(path):
+    img = imread(path)
+    assert img.ndim == 3
+    return img[..., :3]
+
+
+def test_png_written_with_requested_size(tmp_path):
+    out = tmp_path / "a.png"
+    ret = render_meshes([octahedron(), octahedron(2.0)], out, size=(200, 150),
+                        views=((20, -60), (90, 0)))
+    assert ret == str(out)
+    img = image(out)
+    assert img.shape[:2] == (2 * 150, 2 * 200)  # rows = views, columns = shapes
+    assert len(np.unique(img.reshape(-1, 3), axis=0)) > 10  # not one flat colour
+    assert not list(tmp_path.glob(".tmp*"))  # no temporary file left behind
+
+
+def test_cage_wireframe_changes_the_image(tmp_path):
+    shape = octahedron()
+    cage = octahedron(1.6)
+    render_meshes([shape], tmp_path / "plain.png", size=(160, 160))
+    render_meshes([shape], tmp_path / "caged.png", cages=[cage], size=(160, 160))
+    plain, caged = image(tmp_path / "plain.png"), image(tmp_path / "caged.png")
+    assert plain.shape == caged.shape
+    assert np.abs(plain - caged).max() > 0.2
+    # the cage's orange shows up only in the caged picture
+    orange = (caged[..., 0] > 0.7) & (caged[..., 2] < 0.35)
+    assert orange.sum() > 50
+    assert ((plain[..., 0] > 0.7) & (plain[..., 2] < 0.35)).sum() == 0
+
+
+def test_shading_shows_faces(tmp_path):
+    """Faces at different angles to the light get different shades."""
+    render_meshes([octahedron()], tmp_path / "o.png", size=(160, 160))
+    img = image(tmp_path / "o.png")
+    blueish = img[(img[..., 2] > img[..., 0] + 0.05)]
+    assert len(blueish) > 100
+    assert blueish[:, 2].max() - blueish[:, 2].min() > 0.2
+
+
+def test_point_cloud_titles_caption(tmp_path):
+    V, _ = sphere()
+    out = tmp_path / "cloud.png"
+    render_meshes([(V, None), (V, np.zeros((0, 3), int))], out, titles=["a", "b"],
+                  caption="two clouds", size=(120, 120))
+    img = image(out)
+    assert img.shape[:2] == (120, 240)
+    assert (img.sum(axis=-1) < 2.0).sum() > 100  # dots (and text) were drawn
+
+
+def test_large_mesh_is_reduced_and_fast(tmp_path):
+    import time
+
+    V, F = sphere(n_theta=400, n_phi=100)  # ~79k faces
+    assert len(F) > 2 * MAX_FACES
+    t0 = time.perf_counter()
+    render_meshes([(V, F)], tmp_path / "big.png", size=(200, 200))
+    assert time.perf_counter() - t0 < 30
+    img = image(tmp_path / "big.png")
+    # the reduced sphere still looks solid: no white holes in the middle of the disc
+    centre = img[80:120, 80:120]
+    assert (centre.min(axis=-1) > 0.97).sum() == 0
+
+
+def test_render_is_deterministic(tmp_path):
+    V, F = sphere(n_theta=300, n_phi=80)
+    render_meshes([(V, F)], tmp_path / "a.png", size=(100, 100), max_faces=5000)
+    render_meshes([(V, F)], tmp_path / "b.png", size=(100, 100), max_faces=5000)
+    assert np.array_equal(image(tmp_path / "a.png"), image(tmp_path / "b.png"))
+
+
+def test_unique_edges():
+    _, F = octahedron()
+    E = unique_edges(F)
+    assert E.shape == (12, 2)
+    assert np.all(E[:, 0] < E[:, 1])
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"meshes": []},
+        {"meshes": [(np.zeros((3, 2)), None)]},
+        {"meshes": [octahedron()], "cages": [None, None]},
+        {"meshes": [octahedron()], "titles": ["a", "b"]},
+        {"meshes": [(octahedron()[0], np.array([[0, 1, 9]]))]},
+        {"meshes": [octahedron()], "up": "w"},
+    ],
+)
+def test_bad_arguments_raise(tmp_path, kwargs):
+    with pytest.raises(ValueError):
+        render_meshes(path=tmp_path / "x.png", **kwargs)
+    assert not os.listdir(tmp_path)
+
+
+def test_unwritable_destination_raises(tmp_path):
+    from cagekit.errors import InputError
+
+    with pytest.raises((OSError, InputError)):
+        render_meshes([octahedron()], tmp_path / "missing-folder" / "x.png")
+    (tmp_path / "folder.png").mkdir()
+    with pytest.raises((OSError, InputError)):
+        render_meshes([octahedron()], tmp_path / "folder.png")
+    assert os.listdir(tmp_path) == ["folder.png"]
+
+
+# --- the bundled example ----------------------------------------------------------------
+
+
+def _closed_oriented(F):
+    """Each directed edge exactly once and its reverse present."""
+    directed = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    as_set = {tuple(e) for e in directed.tolist()}
+    return len(as_set) == len(directed) and all((b, a) in as_set for a, b in as_set)
+
+
+def _signed_volume(V, F):
+    a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
+    return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
+
+
+def test_example_files_are_valid():
+    import igl
+
+    shape = read_obj(os.path.join(EXAMPLE, "shape.obj"))
+    cage = read_obj(os.path.join(EXAMPLE, "cage.obj"))
+    deformed = read_obj(os.path.join(EXAMPLE, "cage_deformed.obj"))
+    assert 5_000 <= len(shape[1]) <= 20_000
+    assert 50 <= len(cage[1]) <= 150
+    for V, F in (shape, cage, deformed):
+        assert np.all(np.isfinite(V))
+        assert _closed_oriented(F)
+        assert _signed_volume(V, F) > 0  # outward normals
+    assert np.array_equal(cage[1], deformed[1])
+    assert cage[0].shape == deformed[0].shape
+    assert np.abs(cage[0] - deformed[0]).max() > 0.2  # an obvious deformation
+    w = igl.winding_number(cage[0], cage[1], shape[0])
+    assert np.all(np.abs(w - 1.0) < 1e-6)
+
+
+def test_example_script_reproduces_the_files(tmp_path):
+    import subprocess
+    import sys
+
+    script = os.path.join(ROOT, "data", "make_example.py")
+    subprocess.run([sys.executable, script, "--out", str(tmp_path), "--no-check"],
+                   check=True, capture_output=True)
+    for name in ("shape.obj", "cage.obj", "cage_deformed.obj"):
+        with open(tmp_path / name, "rb") as a, open(os.path.join(EXAMPLE, name), "rb") as b:
+            assert a.read() == b.read(), name
