@@ -29,6 +29,7 @@ import traceback
 import click
 
 from cagekit import __version__
+from cagekit.coords.binding import METHODS as COORDINATE_METHODS
 from cagekit.errors import InputError
 
 __all__ = ["main"]
@@ -266,8 +267,8 @@ def main(debug: bool) -> None:
 @click.argument("deformed_cage", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", "out", required=True, type=click.Path(dir_okay=False),
               help="Deformed shape to write (mesh or point cloud, format from extension).")
-@click.option("--coords", type=click.Choice(["mvc", "green"]), default="mvc",
-              show_default=True, help="Cage coordinates.")
+@click.option("--coords", type=click.Choice(list(COORDINATE_METHODS)), default="mvc",
+              show_default=True, help="Cage coordinates (mean value coordinates).")
 @_json_option
 @_debug_option
 @click.pass_context

@@ -221,7 +221,8 @@ def check(shape, cage, deformed) -> None:
     """
     import igl
 
-    for name, (V, F) in {"shape": shape, "cage": cage, "deformed cage": (deformed, cage[1])}.items():
+    parts = {"shape": shape, "cage": cage, "deformed cage": (deformed, cage[1])}
+    for name, (V, F) in parts.items():
         assert len(igl.boundary_facets(F)[0]) == 0, f"{name} is not closed"
         assert igl.is_edge_manifold(F)[0], f"{name} is not edge-manifold"
         assert signed_volume(V, F) > 0, f"{name} is not outward oriented"

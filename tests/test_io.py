@@ -199,7 +199,8 @@ def test_obj_polygons_are_fan_triangulated_in_order(tmp_path):
 
 def test_off_polygons_are_fan_triangulated_in_order(tmp_path):
     body = SQUARE_AND_HOUSE.replace("v ", "")
-    path = write(tmp_path / "poly.off", f"OFF 5 3 0\n{body}4 0 1 2 3\n5 0 1 2 4 3 255 0 0\n3 1 2 4\n")
+    path = write(tmp_path / "poly.off",
+                 f"OFF 5 3 0\n{body}4 0 1 2 3\n5 0 1 2 4 3 255 0 0\n3 1 2 4\n")
     assert cio.load_mesh(path)[1].tolist() == FANS
 
 
@@ -390,7 +391,8 @@ def test_missing_file_directory_and_mesh_only_errors(tmp_path):
 
 
 def test_trimesh_failures_print_nothing(tmp_path, capfd):
-    path = write(tmp_path / "broken.stl", "solid x\nfacet normal 0 0 zz\nouter loop\nvertex 0 0 0\n")
+    path = write(tmp_path / "broken.stl",
+                 "solid x\nfacet normal 0 0 zz\nouter loop\nvertex 0 0 0\n")
     with pytest.raises(MeshFileError):
         cio.load_mesh(path)
     assert capfd.readouterr().err == ""
