@@ -9,8 +9,10 @@ oriented inward, and raises :class:`cagekit.CageError` for anything it cannot fi
 Decisions
 ---------
 * An open cage (a boundary edge), a non-manifold edge (shared by more than two faces), an
-  inconsistently oriented pair of faces, a face repeating a vertex, an index out of range and
-  non-finite coordinates are errors. A consistently *inward* cage is flipped, not refused.
+  inconsistently oriented pair of faces, a face repeating a vertex or of zero area (twice
+  its area below 1e-24 D**2, D the bounding-box diagonal), an index out of range and
+  non-finite coordinates are errors. Near-degenerate (sliver) faces are fine. A
+  consistently *inward* cage is flipped, not refused.
 * A cage with several closed components is accepted (each component is checked); its
   orientation is decided per component by the sign of the component's volume.
 * Unreferenced vertices are allowed: they keep their index and get zero weight.
@@ -132,8 +134,8 @@ def check_cage(cage_v, cage_f, name: str | None = None) -> np.ndarray:
     ------
     CageError
         Non-finite vertices, bad face array, an index out of range, a face repeating a
-        vertex, a boundary (open cage), a non-manifold edge, inconsistent orientation or a
-        component of zero volume.
+        vertex or of zero area, a boundary (open cage), a non-manifold edge, inconsistent
+        orientation or a component of zero volume.
 
     Examples
     --------
@@ -156,6 +158,12 @@ def check_cage(cage_v, cage_f, name: str | None = None) -> np.ndarray:
         raise CageError(f"cage face index out of range 0..{len(v) - 1}", name)
     if np.any((f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 2] == f[:, 0])):
         raise CageError("cage has a degenerate face that repeats a vertex", name)
+
+    twice_area = np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]),
+                                axis=1)
+    diagonal = np.linalg.norm(v.max(axis=0) - v.min(axis=0))
+    if np.any(twice_area <= 1e-24 * diagonal**2):
+        raise CageError(f"cage face {int(np.argmin(twice_area))} has zero area", name)
 
     topo = cage_topology(f)
     uses = np.bincount(topo.face_edges.ravel(), minlength=len(topo.edges))

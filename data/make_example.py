@@ -85,6 +85,34 @@ def ring_heights() -> np.ndarray:
     )
 
 
+def capped_tube_faces(n_rings: int, n_around: int) -> np.ndarray:
+    """Outward triangles of a tube of rings closed by a fan at each end.
+
+    Vertices are ``n_rings`` rings of ``n_around`` (bottom to top, counter-clockwise seen
+    from above), then the bottom centre, then the top centre.
+
+    Returns
+    -------
+    (2 * n_around * n_rings, 3) int64
+    """
+    bottom, top = n_rings * n_around, n_rings * n_around + 1
+
+    def vid(i, j):
+        return i * n_around + (j % n_around)
+
+    faces = []
+    for i in range(n_rings - 1):
+        for j in range(n_around):
+            a, b = vid(i, j), vid(i, j + 1)
+            c, d = vid(i + 1, j + 1), vid(i + 1, j)
+            faces.append((a, b, c))
+            faces.append((a, c, d))
+    for j in range(n_around):
+        faces.append((bottom, vid(0, j + 1), vid(0, j)))
+        faces.append((top, vid(n_rings - 1, j), vid(n_rings - 1, j + 1)))
+    return np.asarray(faces, dtype=np.int64)
+
+
 def make_shape() -> tuple[np.ndarray, np.ndarray]:
     """The vase: ``(V, F)``, ``(n, 3)`` float64 and ``(m, 3)`` int64, closed, outward."""
     t = ring_heights()
@@ -97,22 +125,7 @@ def make_shape() -> tuple[np.ndarray, np.ndarray]:
     bottom = np.array([[0.0, -0.5 * HEIGHT, 0.0]])
     top = np.array([[0.0, 0.5 * HEIGHT, 0.0]])
     V = np.concatenate([ring_v, bottom, top], axis=0)
-    ib, it = len(ring_v), len(ring_v) + 1
-
-    def vid(i, j):
-        return i * N_AROUND + (j % N_AROUND)
-
-    faces = []
-    for i in range(n_rings - 1):
-        for j in range(N_AROUND):
-            a, b = vid(i, j), vid(i, j + 1)
-            c, d = vid(i + 1, j + 1), vid(i + 1, j)
-            faces.append((a, b, c))
-            faces.append((a, c, d))
-    for j in range(N_AROUND):
-        faces.append((ib, vid(0, j + 1), vid(0, j)))
-        faces.append((it, vid(n_rings - 1, j), vid(n_rings - 1, j + 1)))
-    return V, np.asarray(faces, dtype=np.int64)
+    return V, capped_tube_faces(n_rings, N_AROUND)
 
 
 def make_cage(margin: float = 0.09) -> tuple[np.ndarray, np.ndarray]:
@@ -149,22 +162,7 @@ def make_cage(margin: float = 0.09) -> tuple[np.ndarray, np.ndarray]:
         axis=-1,
     ).reshape(-1, 3)
     V = np.concatenate([ring_v, [[0.0, y_ring[0], 0.0]], [[0.0, y_ring[-1], 0.0]]], axis=0)
-    ib, it = len(ring_v), len(ring_v) + 1
-
-    def vid(i, j):
-        return i * CAGE_SIDES + (j % CAGE_SIDES)
-
-    faces = []
-    for i in range(CAGE_RINGS - 1):
-        for j in range(CAGE_SIDES):
-            a, b = vid(i, j), vid(i, j + 1)
-            c, d = vid(i + 1, j + 1), vid(i + 1, j)
-            faces.append((a, b, c))
-            faces.append((a, c, d))
-    for j in range(CAGE_SIDES):
-        faces.append((ib, vid(0, j + 1), vid(0, j)))
-        faces.append((it, vid(CAGE_RINGS - 1, j), vid(CAGE_RINGS - 1, j + 1)))
-    return V, np.asarray(faces, dtype=np.int64)
+    return V, capped_tube_faces(CAGE_RINGS, CAGE_SIDES)
 
 
 def deform_cage(V: np.ndarray) -> np.ndarray:

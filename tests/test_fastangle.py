@@ -3,7 +3,12 @@
 import numba
 import numpy as np
 
-from cagekit.coords.fastangle import ATAN_COEFFICIENTS, angle_from_sin_cos, fit_atan_polynomial
+from cagekit.coords.fastangle import (
+    ATAN_COEFFICIENTS,
+    angle_from_sin_cos,
+    fit_atan_polynomial,
+    half_angle_over_sin,
+)
 
 
 @numba.njit
@@ -35,3 +40,21 @@ def test_coefficients_are_reproducible_and_close_to_taylor():
     np.testing.assert_array_equal(fit_atan_polynomial(), ATAN_COEFFICIENTS)
     # atan(y) = y - y^3/3 + y^5/5 - ...: the low-order coefficients are the Taylor ones
     np.testing.assert_allclose(ATAN_COEFFICIENTS[:3], [1, -1 / 3, 1 / 5], rtol=1e-6)
+
+
+@numba.njit
+def _half_ratios(s, c):
+    out = np.empty_like(s)
+    for i in range(s.size):
+        out[i] = half_angle_over_sin(s[i], c[i])
+    return out
+
+
+def test_half_angle_over_sin():
+    theta = np.concatenate([np.linspace(1e-6, np.pi - 1e-6, 100_001), np.logspace(-300, -1, 300),
+                            np.pi - np.logspace(-15, -1, 300)])
+    s, c = np.sin(theta), np.cos(theta)
+    exact = np.arctan2(s.astype(np.longdouble), c.astype(np.longdouble)) / (2 * s)
+    got = _half_ratios(s, c)
+    assert np.max(np.abs(got - exact) / exact) <= 2e-15
+    assert _half_ratios(np.zeros(2), np.array([1.0, -1.0])).tolist() == [0.0, 0.0]

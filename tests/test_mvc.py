@@ -249,7 +249,13 @@ def test_similarity_invariance_of_the_weights(seed):
     t = rng.normal(size=3) * 10 * s
     w = mean_value_coordinates(p, v, f)
     w2 = mean_value_coordinates(s * p @ q.T + t, s * v @ q.T + t, f)
-    assert np.abs(w - w2).max() <= 1e-10
+    # a point at distance h from the plane of a face it lies outside of has single weights
+    # accurate to about eps * D / h (the error leaves linear precision intact; see the
+    # module docstring of cagekit.coords.mvc)
+    normals = unit_normals(v, f)
+    h = np.abs(np.einsum("pfc,fc->pf", p[:, None, :] - v[f[:, 0]][None], normals)).min(axis=1)
+    tol = 1e-11 + 1e-14 * diag(v) / h
+    assert np.all(np.abs(w - w2).max(axis=1) <= tol)
 
 
 def test_mirrored_cage_is_reoriented():

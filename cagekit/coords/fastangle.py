@@ -22,7 +22,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["angle_from_sin_cos", "atan_small", "fit_atan_polynomial", "ATAN_COEFFICIENTS"]
+__all__ = ["angle_from_sin_cos", "half_angle_over_sin", "fit_atan_polynomial",
+           "ATAN_COEFFICIENTS"]
 
 _TAN_PI_8 = float(np.tan(np.pi / 8))
 
@@ -86,8 +87,30 @@ def atan_small(y):
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
+def _reduce(s, c):
+    """Steps 1-2: numerator and denominator of the reduced argument, and the flags."""
+    a = abs(c)
+    lo = min(s, a)
+    hi = max(s, a)
+    big = lo > _TAN_PI_8 * hi
+    num = lo - hi if big else lo
+    den = lo + hi if big else hi
+    return num, den, big, s > a, c < 0.0
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _unreduce(r, big, swapped, negative):
+    """Step 4: undo the reductions of :func:`_reduce` on ``r = atan(num / den)``."""
+    r = r + 0.7853981633974483 if big else r
+    r = 1.5707963267948966 - r if swapped else r
+    return 3.141592653589793 - r if negative else r
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def angle_from_sin_cos(s, c):
     """``atan2(s, c)`` for ``s >= 0`` (an angle in ``[0, pi]``); 0 when both are 0.
+
+    Written with selects only (no branches) so that loops calling it vectorise.
 
     Parameters
     ----------
@@ -100,17 +123,32 @@ def angle_from_sin_cos(s, c):
     -------
     float
     """
-    a = abs(c)
-    lo = min(s, a)
-    hi = max(s, a)
-    if hi == 0.0:
-        return 0.0
-    if lo <= _TAN_PI_8 * hi:
-        r = atan_small(lo / hi)
-    else:
-        r = 0.7853981633974483 + atan_small((lo - hi) / (lo + hi))
-    if s > a:
-        r = 1.5707963267948966 - r
-    if c < 0.0:
-        r = 3.141592653589793 - r
-    return r
+    num, den, big, swapped, negative = _reduce(s, c)
+    return _unreduce(atan_small(num / (den if den > 0.0 else 1.0)), big, swapped, negative)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def half_angle_over_sin(s, c):
+    """``atan2(s, c) / (2 s)`` for ``s >= 0``, and 0 where ``s == 0``.
+
+    The MVC edge term ``beta / 2 * (u x v) / |u x v|`` needs this ratio; computing it with
+    one division (``1 / (den * s)`` serves both ``num / den`` and ``1 / s``) instead of two
+    makes the MVC kernel about twice as fast.
+
+    Parameters
+    ----------
+    s : float
+        ``|u x v|`` (non-negative).
+    c : float
+        ``u . v``.
+
+    Returns
+    -------
+    float
+    """
+    num, den, big, swapped, negative = _reduce(s, c)
+    sd = den * s
+    pos = sd > 0.0
+    inv = 1.0 / (sd if pos else 1.0)
+    r = _unreduce(atan_small(num * (s * inv)), big, swapped, negative)
+    return 0.5 * r * (den * inv) if pos else 0.0

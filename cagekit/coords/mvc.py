@@ -36,6 +36,15 @@ face. The error this switch makes in linear precision is at most the distance, `
 A face whose plane passes within ``snap * D`` of ``x`` while ``x`` lies outside the face is
 skipped (its contribution tends to zero there).
 
+Single weights near a face's plane
+----------------------------------
+For a point at distance ``h`` from the plane of a face that it lies *outside* of (on the
+plane's extension), that face's ``lambda`` is a ratio of two quantities of order ``h``, and
+single weights carry an error of about ``1e-16 D / h`` (about 1e-10 at ``h = 1e-6 D``; the
+textbook formula has the same limitation). The error lies along ``sum_j dw_j A_j = 0``, so
+partition of unity and linear precision are not affected, and it vanishes in the exact
+switch-over zone, where such faces are skipped.
+
 Far outside
 -----------
 At distance ``R`` from the cage the weight sum decays like ``D**3 / R**4`` while single
@@ -44,13 +53,24 @@ ill-conditioned function of the point, whatever the formula. Within ``2 D`` of t
 centre linear precision stays below ``1e-12 D`` (tested to ``1e-6 D``). Beyond, its error
 grows like ``(R / D)**4`` (worst case measured by ``benchmarks/mvc_precision.py``:
 ``3e-10 D`` at ``10 D``, ``3e-6 D`` at ``100 D``, ``0.1 D`` at ``1000 D``; the textbook
-formula is worse by one to six orders of magnitude). The output always stays finite and sums to one (to the rounding
-of the weights); if the weight sum cannot be resolved at all (``|sum w| <= 1e-15
-sum |w|``), the point gets the barycentric coordinates of its closest cage point instead.
+formula is worse by one to six orders of magnitude). The output always stays finite and
+sums to one (to the rounding of the weights); if the weight sum cannot be resolved at
+all (``|sum w| <= 1e-15 sum |w|``), the point gets the barycentric coordinates of its
+closest cage point instead.
+
+Speed
+-----
+Points are processed ``_LANES = 16`` at a time with the point index innermost and no
+branches in the loops, so that LLVM vectorises them (AVX2: four points per instruction);
+the edge angle is a polynomial (:mod:`cagekit.coords.fastangle`), not a libm call. A point
+that lies within ``snap * D`` of any face's plane poisons its own lane with NaN and is
+looked at again alone (the switch-over cases, or the formula with that face skipped).
+``benchmarks/bench_mvc.py`` measures it against VTK and a dense NumPy version.
 
 Memory
 ------
-Only the ``(n, k)`` output is proportional to ``n``. Scratch space is ``O(k + e)`` per thread.
+Only the ``(n, k)`` output is proportional to ``n``. Scratch space is ``O(k + e + m)`` per
+chunk of points (a few hundred kB for a 1,000-face cage), reused across the chunk.
 """
 
 from __future__ import annotations
@@ -59,7 +79,7 @@ import numba
 import numpy as np
 
 from cagekit.cage import cage_topology
-from cagekit.coords.fastangle import _TAN_PI_8, angle_from_sin_cos, atan_small
+from cagekit.coords.fastangle import half_angle_over_sin
 
 __all__ = ["mean_value_coordinates", "DEFAULT_SNAP"]
 
@@ -126,118 +146,49 @@ def _closest_point_weights(x, cage_v, faces, row):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _mvc_point(x, cage_v, faces, edges, edge_len, face_edges, face_signs, face_n, snap,
-               U, dist, G, X, row):
-    """MVC of one point into ``row`` (k,). Scratch: U (k,3), dist (k,), G, X (e,3)."""
-    k = cage_v.shape[0]
-    row[:] = 0.0
-    # Relative vectors, distances, vertex snap.
-    nearest = 0
-    for j in range(k):
-        ax = cage_v[j, 0] - x[0]
-        ay = cage_v[j, 1] - x[1]
-        az = cage_v[j, 2] - x[2]
-        d = np.sqrt(ax * ax + ay * ay + az * az)
-        dist[j] = d
-        if d < dist[nearest]:
-            nearest = j
-        if d > 0.0:
-            U[j, 0] = ax / d
-            U[j, 1] = ay / d
-            U[j, 2] = az / d
-    if dist[nearest] <= snap:
-        row[nearest] = 1.0
-        return
-    # Edge terms: X = u_lo x u_hi, G = beta/2 * X/|X|; edge snap.
+def _snap_weights(x, cage_v, faces, edges, face_n, face_off, snap, row):
+    """Exact limit weights if ``x`` is within ``snap`` of a vertex, an edge or a face.
+
+    Writes ``row`` and returns True in that case (a vertex's unit weight, linear
+    interpolation along the edge, barycentric coordinates on the face); returns False and
+    leaves ``row`` alone otherwise.
+    """
+    for j in range(cage_v.shape[0]):
+        d = cage_v[j] - x
+        if np.sqrt(d @ d) <= snap:
+            row[:] = 0.0
+            row[j] = 1.0
+            return True
     for e in range(edges.shape[0]):
-        a = edges[e, 0]
-        b = edges[e, 1]
-        cx, cy, cz = _cross(U[a, 0], U[a, 1], U[a, 2], U[b, 0], U[b, 1], U[b, 2])
-        s = np.sqrt(cx * cx + cy * cy + cz * cz)
-        cos_ab = U[a, 0] * U[b, 0] + U[a, 1] * U[b, 1] + U[a, 2] * U[b, 2]
-        # distance from x to the edge's line = d_a d_b sin(beta) / |p_b - p_a|
-        if cos_ab < 0.0 and dist[a] * dist[b] * s <= snap * edge_len[e]:
-            t = dist[a] / (dist[a] + dist[b])
-            row[a] = 1.0 - t
-            row[b] = t
-            return
-        X[e, 0] = cx
-        X[e, 1] = cy
-        X[e, 2] = cz
-        if s > 0.0:
-            g = 0.5 * angle_from_sin_cos(s, cos_ab) / s
-            G[e, 0] = g * cx
-            G[e, 1] = g * cy
-            G[e, 2] = g * cz
-        else:
-            G[e, 0] = 0.0
-            G[e, 1] = 0.0
-            G[e, 2] = 0.0
-    # Face terms.
+        a = cage_v[edges[e, 0]]
+        ab = cage_v[edges[e, 1]] - a
+        t = min(max((x - a) @ ab / (ab @ ab), 0.0), 1.0)
+        q = a + t * ab - x
+        if np.sqrt(q @ q) <= snap:
+            row[:] = 0.0
+            row[edges[e, 0]] = 1.0 - t
+            row[edges[e, 1]] = t
+            return True
     for f in range(faces.shape[0]):
-        ia = faces[f, 0]
-        ib = faces[f, 1]
-        ic = faces[f, 2]
-        nx = face_n[f, 0]
-        ny = face_n[f, 1]
-        nz = face_n[f, 2]
-        h = (x[0] - cage_v[ia, 0]) * nx + (x[1] - cage_v[ia, 1]) * ny \
-            + (x[2] - cage_v[ia, 2]) * nz
-        if abs(h) <= snap:
-            # In the face's plane: barycentric coordinates of x if it is on the face.
-            wa = 0.0
-            wb = 0.0
-            wc = 0.0
+        n = face_n[f]
+        if abs(x @ n - face_off[f]) > snap:
+            continue
+        # in the face's plane: twice the signed areas of the sub-triangles opposite each
+        # vertex, measured along the face normal
+        bary = np.zeros(3)
+        for r in range(3):
+            p0 = cage_v[faces[f, (r + 1) % 3]] - x
+            p1 = cage_v[faces[f, (r + 2) % 3]] - x
+            c0, c1, c2 = _cross(p0[0], p0[1], p0[2], p1[0], p1[1], p1[2])
+            bary[r] = c0 * n[0] + c1 * n[1] + c2 * n[2]
+        total = bary.sum()
+        if total > 0.0 and bary.min() >= -1e-12 * total:
+            bary = np.maximum(bary, 0.0)
+            row[:] = 0.0
             for r in range(3):
-                i0 = faces[f, (r + 1) % 3]
-                i1 = faces[f, (r + 2) % 3]
-                c0, c1, c2 = _cross(cage_v[i0, 0] - x[0], cage_v[i0, 1] - x[1],
-                                    cage_v[i0, 2] - x[2], cage_v[i1, 0] - x[0],
-                                    cage_v[i1, 1] - x[1], cage_v[i1, 2] - x[2])
-                area = c0 * nx + c1 * ny + c2 * nz
-                if r == 0:
-                    wa = area
-                elif r == 1:
-                    wb = area
-                else:
-                    wc = area
-            total = wa + wb + wc
-            if total > 0.0 and min(wa, wb, wc) >= -1e-12 * total:
-                wa = max(wa, 0.0)
-                wb = max(wb, 0.0)
-                wc = max(wc, 0.0)
-                total = wa + wb + wc
-                row[:] = 0.0
-                row[ia] = wa / total
-                row[ib] = wb / total
-                row[ic] = wc / total
-                return
-            continue
-        e_ab = face_edges[f, 0]
-        e_bc = face_edges[f, 1]
-        e_ca = face_edges[f, 2]
-        s_ab = face_signs[f, 0]
-        s_bc = face_signs[f, 1]
-        s_ca = face_signs[f, 2]
-        mx = s_ab * G[e_ab, 0] + s_bc * G[e_bc, 0] + s_ca * G[e_ca, 0]
-        my = s_ab * G[e_ab, 1] + s_bc * G[e_bc, 1] + s_ca * G[e_ca, 1]
-        mz = s_ab * G[e_ab, 2] + s_bc * G[e_bc, 2] + s_ca * G[e_ca, 2]
-        # adjugate rows: u_b x u_c, u_c x u_a, u_a x u_b
-        det = s_bc * (U[ia, 0] * X[e_bc, 0] + U[ia, 1] * X[e_bc, 1] + U[ia, 2] * X[e_bc, 2])
-        if det == 0.0:
-            continue
-        inv = 1.0 / det
-        la = s_bc * (mx * X[e_bc, 0] + my * X[e_bc, 1] + mz * X[e_bc, 2]) * inv
-        lb = s_ca * (mx * X[e_ca, 0] + my * X[e_ca, 1] + mz * X[e_ca, 2]) * inv
-        lc = s_ab * (mx * X[e_ab, 0] + my * X[e_ab, 1] + mz * X[e_ab, 2]) * inv
-        row[ia] += la / dist[ia]
-        row[ib] += lb / dist[ib]
-        row[ic] += lc / dist[ic]
-    # The weight sum is positive inside the cage, negative outside it and small far away,
-    # where single weights cancel.
-    if _normalise_row(row):
-        return
-    _closest_point_weights(x, cage_v, faces, row)
+                row[faces[f, r]] = bary[r] / bary.sum()
+            return True
+    return False
 
 
 _LANES = 16
@@ -245,19 +196,23 @@ _LANES = 16
 
 @numba.njit(cache=True, error_model="numpy", fastmath={"contract"})
 def _mvc_lanes(P, cage_v, faces, edges, face_edges, face_signs, face_n, face_off, snap,
-               U, inv_d, G, X, lam, acc):
+               in_plane_value, U, inv_d, G, X, lam, acc):
     """Unnormalised MVC of ``_LANES`` points at once, for the points off the cage.
 
     The loops run over lanes (points) innermost, with no branches, so that LLVM vectorises
     them. Points that need the switch-over are not handled here: a point within ``snap``
     of a vertex, an edge or a face is within ``snap`` of that face's plane, and every such
-    (point, face) pair poisons the point's weights with NaN; the caller then recomputes
-    the point with :func:`_mvc_point`.
+    (point, face) pair multiplies the face's terms by ``in_plane_value``: NaN in the first
+    pass, which poisons the point's weights so that the caller looks at it again (see
+    :func:`_mvc_kernel`), and 0 in the second, which skips faces whose plane passes through
+    a point that lies off them (their contribution tends to zero there).
 
     Parameters
     ----------
     P : (3, L) float64
         The points, coordinates by lane.
+    in_plane_value : float
+        NaN or 0, see above.
     U : (3, k, L), inv_d : (k, L), G, X : (3, e, L), lam : (3, m, L)
         Scratch.
     acc : (k, L) float64
@@ -274,8 +229,7 @@ def _mvc_lanes(P, cage_v, faces, edges, face_edges, face_signs, face_n, face_off
             U[0, j, lane] = ax * inv
             U[1, j, lane] = ay * inv
             U[2, j, lane] = az * inv
-    # Edge terms: X = u_lo x u_hi and G = beta / 2 * X / |X|, with one division for the
-    # angle's argument and 1/|X| together (see cagekit.coords.fastangle for the angle).
+    # Edge terms: X = u_lo x u_hi and G = beta / 2 * X / |X| (beta: cagekit.coords.fastangle)
     for e in range(edges.shape[0]):
         a = edges[e, 0]
         b = edges[e, 1]
@@ -291,21 +245,7 @@ def _mvc_lanes(P, cage_v, faces, edges, face_edges, face_signs, face_n, face_off
             cz = uax * uby - uay * ubx
             s = np.sqrt(cx * cx + cy * cy + cz * cz)
             c = uax * ubx + uay * uby + uaz * ubz
-            ac = abs(c)
-            lo = min(s, ac)
-            hi = max(s, ac)
-            big = lo > _TAN_PI_8 * hi
-            num = lo - hi if big else lo
-            den = lo + hi if big else hi
-            sd = den * s
-            pos = sd > 0.0
-            inv = 1.0 / (sd if pos else 1.0)
-            r = atan_small(num * s * inv)
-            r = r + 0.7853981633974483 if big else r
-            r = 1.5707963267948966 - r if s > ac else r
-            r = 3.141592653589793 - r if c < 0.0 else r
-            g = 0.5 * r * den * inv
-            g = g if pos else 0.0
+            g = half_angle_over_sin(s, c)
             X[0, e, lane] = cx
             X[1, e, lane] = cy
             X[2, e, lane] = cz
@@ -338,7 +278,7 @@ def _mvc_lanes(P, cage_v, faces, edges, face_edges, face_signs, face_n, face_off
             det = U[0, ia, lane] * xa0 + U[1, ia, lane] * xa1 + U[2, ia, lane] * xa2
             ok = abs(h) > snap and det != 0.0
             inv = 1.0 / (det if ok else 1.0)
-            inv = inv if ok else np.nan
+            inv = inv if ok else in_plane_value
             lam[0, f, lane] = (mx * xa0 + my * xa1 + mz * xa2) * inv * inv_d[ia, lane]
             lam[1, f, lane] = s_ca * (mx * X[0, e_ca, lane] + my * X[1, e_ca, lane]
                                       + mz * X[2, e_ca, lane]) * inv * inv_d[ib, lane]
@@ -378,8 +318,15 @@ def _normalise_row(row):
 
 
 @numba.njit(parallel=True, cache=True, error_model="numpy")
-def _mvc_kernel(points, cage_v, faces, edges, edge_len, face_edges, face_signs, face_n,
-                face_off, snap, n_chunks, out):
+def _mvc_kernel(points, cage_v, faces, edges, face_edges, face_signs, face_n, face_off, snap,
+                n_chunks, out):
+    """MVC of all points into ``out`` (n, k), ``_LANES`` points at a time, chunks in parallel.
+
+    A point whose first-pass weights are not finite (poisoned: it lies within ``snap`` of
+    some face's plane) or whose weight sum cannot be resolved is looked at again, alone:
+    exact limits on the cage (:func:`_snap_weights`), else the lane kernel with in-plane
+    faces skipped, else the closest cage point's barycentric coordinates.
+    """
     n = points.shape[0]
     k = cage_v.shape[0]
     e = edges.shape[0]
@@ -396,10 +343,8 @@ def _mvc_kernel(points, cage_v, faces, edges, edge_len, face_edges, face_signs, 
         X = np.empty((3, e, L))
         lam = np.empty((3, m, L))
         acc = np.empty((k, L))
-        Us = np.empty((k, 3))
-        ds = np.empty(k)
-        Gs = np.empty((e, 3))
-        Xs = np.empty((e, 3))
+        P1 = np.empty((3, L))
+        acc1 = np.empty((k, L))
         for blk in range(chunk * n_blocks // n_chunks, (chunk + 1) * n_blocks // n_chunks):
             start = blk * L
             stop = min(start + L, n)
@@ -409,15 +354,26 @@ def _mvc_kernel(points, cage_v, faces, edges, edge_len, face_edges, face_signs, 
                 P[1, lane] = points[src, 1]
                 P[2, lane] = points[src, 2]
             _mvc_lanes(P, cage_v, faces, edges, face_edges, face_signs, face_n, face_off,
-                       snap, U, inv_d, G, X, lam, acc)
+                       snap, np.nan, U, inv_d, G, X, lam, acc)
             for i in range(start, stop):
-                lane = i - start
                 row = out[i]
                 for j in range(k):
-                    row[j] = acc[j, lane]
+                    row[j] = acc[j, i - start]
+                if _normalise_row(row):
+                    continue
+                if _snap_weights(points[i], cage_v, faces, edges, face_n, face_off, snap, row):
+                    continue
+                # alone in its own lane block (acc still holds the block's other points)
+                for lane in range(L):
+                    P1[0, lane] = points[i, 0]
+                    P1[1, lane] = points[i, 1]
+                    P1[2, lane] = points[i, 2]
+                _mvc_lanes(P1, cage_v, faces, edges, face_edges, face_signs, face_n, face_off,
+                           snap, 0.0, U, inv_d, G, X, lam, acc1)
+                for j in range(k):
+                    row[j] = acc1[j, 0]
                 if not _normalise_row(row):
-                    _mvc_point(points[i], cage_v, faces, edges, edge_len, face_edges,
-                               face_signs, face_n, snap, Us, ds, Gs, Xs, row)
+                    _closest_point_weights(points[i], cage_v, faces, row)
 
 
 def mean_value_coordinates(points, cage_v, cage_f, snap: float = DEFAULT_SNAP, out=None,
@@ -472,7 +428,6 @@ def mean_value_coordinates(points, cage_v, cage_f, snap: float = DEFAULT_SNAP, o
     cv = np.ascontiguousarray(cage_v - centre)
     px = np.ascontiguousarray(pts - centre)
     topo = cage_topology(faces)
-    edge_len = np.linalg.norm(cv[topo.edges[:, 1]] - cv[topo.edges[:, 0]], axis=1)
     normals = np.cross(cv[faces[:, 1]] - cv[faces[:, 0]], cv[faces[:, 2]] - cv[faces[:, 0]])
     norms = np.linalg.norm(normals, axis=1, keepdims=True)
     normals = np.divide(normals, norms, out=np.zeros_like(normals), where=norms > 0)
@@ -483,7 +438,7 @@ def mean_value_coordinates(points, cage_v, cage_f, snap: float = DEFAULT_SNAP, o
         raise ValueError(f"out must be a C-contiguous float64 array of shape {(n, k)}")
     face_off = np.einsum("ij,ij->i", cv[faces[:, 0]], normals)
     if n:
-        _mvc_kernel(px, cv, np.ascontiguousarray(faces), topo.edges, edge_len, topo.face_edges,
+        _mvc_kernel(px, cv, np.ascontiguousarray(faces), topo.edges, topo.face_edges,
                     topo.face_edge_signs, normals, face_off, snap * diag,
                     64 * numba.get_num_threads(), out)
     return out
