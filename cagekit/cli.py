@@ -13,6 +13,8 @@ Rules shared by every command (DESIGN.md, "Command line"):
 - other expected failures (an ``OSError`` while writing, say) print one line and exit 1;
 - an output that resolves to one of the inputs is refused (status 2) before any work;
 - outputs are written atomically by the library (temporary file, then rename);
+- NumPy floating-point warnings (overflow...) are silenced (``numpy.errstate``) so that
+  stderr carries only these lines; the library's own checks report such input;
 - ``--json`` prints one JSON object on stdout and nothing else there;
 - long work shows a progress bar on stderr, only when stderr is a terminal.
 """
@@ -56,6 +58,8 @@ class _Group(click.Group):
     def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True,
              **extra):
         """Run the command line; exit with 0, 1 (failure) or 2 (bad input or usage)."""
+        import numpy as np
+
         args = list(sys.argv[1:] if args is None else args)
         _CURRENT.clear()
         debug = _debug_requested(args)
@@ -63,8 +67,9 @@ class _Group(click.Group):
         where = prog
         try:
             try:
-                rv = super().main(args, prog_name=prog, complete_var=complete_var,
-                                  standalone_mode=False, **extra)
+                with np.errstate(all="ignore"):  # no NumPy warnings on stderr
+                    rv = super().main(args, prog_name=prog, complete_var=complete_var,
+                                      standalone_mode=False, **extra)
             except click.exceptions.NoArgsIsHelpError as exc:
                 click.echo(exc.ctx.get_help())
                 rv = 0
@@ -289,6 +294,7 @@ def apply(ctx, mesh, cage, deformed_cage, out, coords, as_json):
 
     from cagekit import io
     from cagekit.cage import cage_encloses, check_cage
+    from cagekit.geometry import face_areas
 
     _start(ctx)
     _check_output(out, (mesh, cage, deformed_cage))
@@ -298,6 +304,10 @@ def apply(ctx, mesh, cage, deformed_cage, out, coords, as_json):
     V, F = io.load_shape(mesh)
     write = _shape_writer(out, has_faces=len(F) > 0)
     CV, CF = io.load_mesh(cage)
+    try:
+        face_areas(CV, CF)  # areas that overflow would be reported as "zero area" below
+    except InputError as exc:
+        raise InputError(exc.problem, cage) from None
     faces = check_cage(CV, CF, name=cage)  # closed, 2-manifold, oriented (flipped outward)
     DV, DF = io.load_shape(deformed_cage)
     if len(DV) != len(CV):
@@ -353,7 +363,8 @@ _EVAL_ROLES = ("source", "target", "deformed")
 @click.argument("deformed", type=click.Path(dir_okay=False))
 @click.option("--samples", default=5000, show_default=True, type=click.IntRange(min=1),
               help="Surface samples per shape for the Chamfer distance.")
-@click.option("--seed", default=0, show_default=True, type=int, help="Sampling seed.")
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
+              help="Sampling seed (an integer >= 0).")
 @_json_option
 @_debug_option
 @click.pass_context

@@ -213,6 +213,13 @@ def face_areas(V: ArrayLike, F: ArrayLike) -> np.ndarray:
     Returns
     -------
     areas : numpy.ndarray, shape (m,), float64
+        Finite and non-negative.
+
+    Raises
+    ------
+    InputError
+        An area is not finite in float64 (coordinates too large: from about 1e77 on
+        the intermediate squares overflow), or bad input.
 
     Examples
     --------
@@ -221,8 +228,12 @@ def face_areas(V: ArrayLike, F: ArrayLike) -> np.ndarray:
     """
     V = as_vertices(V)
     F = as_faces(F, len(V))
-    cross = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
-    return 0.5 * np.linalg.norm(cross, axis=1)
+    with np.errstate(over="ignore", invalid="ignore"):
+        cross = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+        areas = 0.5 * np.linalg.norm(cross, axis=1)
+    if not np.isfinite(areas).all():
+        raise InputError("coordinates too large: face areas overflow")
+    return areas
 
 
 # ---------------------------------------------------------------------------- laplacian
@@ -249,7 +260,8 @@ def cotangent_laplacian(V: ArrayLike, F: ArrayLike) -> scipy.sparse.csr_matrix:
     Raises
     ------
     InputError
-        No faces, or a face of zero area (its cotangents are infinite).
+        No faces, a face of zero area (its cotangents are infinite), or face areas that
+        overflow (coordinates too large).
 
     Examples
     --------
@@ -387,7 +399,8 @@ def sample_surface(
     Raises
     ------
     InputError
-        No faces, zero total area, negative ``n``, or bad input.
+        No faces, zero total area, face areas that overflow (coordinates too large),
+        negative ``n``, or bad input.
 
     Examples
     --------

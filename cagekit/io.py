@@ -25,7 +25,9 @@ Decisions
 - **OBJ** reads ``v`` and ``f`` statements only (texture coordinates, normals, groups,
   materials, lines and points are ignored); extra ``v`` columns (w or colours) are ignored;
   indices are 1-based, negative indices count back from the latest vertex, index 0 is an
-  error; lines ending in a backslash continue on the next line.
+  error; ``#`` starts a comment that runs to the end of its line (on every line, after a
+  ``v`` or ``f`` statement too); lines ending in a backslash (trailing spaces and a comment
+  aside) continue on the next line.
 - **GLB/GLTF scenes are flattened**: every mesh instance is transformed by its node's world
   transform and the instances are concatenated in trimesh's scene-graph order. A scene with
   point clouds and no meshes loads as a point cloud.
@@ -322,6 +324,7 @@ def _read_obj(path):
     rows, v_lines, faces, f_lines, f_seen = [], [], [], [], []
     pending = ""
     for number, line in enumerate(text.splitlines(), 1):
+        line = line.split("#", 1)[0].rstrip()  # a comment runs to the end of the line
         if line.endswith("\\"):
             pending += line[:-1] + " "
             continue
@@ -932,6 +935,11 @@ def load_landmarks(path: str | os.PathLike) -> dict[str, np.ndarray]:
         except (TypeError, ValueError):
             raise LandmarkFileError(
                 f"{where}: coordinates of {label!r} are not numbers: {list(coords)}", path
+            ) from None
+        except OverflowError:  # a JSON integer too large for a float
+            raise LandmarkFileError(
+                f"{where}: coordinates of {label!r} are not finite (too large for a float)",
+                path,
             ) from None
         if not np.isfinite(xyz).all():
             raise LandmarkFileError(f"{where}: coordinates of {label!r} are not finite", path)

@@ -99,6 +99,18 @@ def _to_display(V: np.ndarray, up: str) -> np.ndarray:
     raise ValueError(f"up must be 'x', 'y' or 'z', got {up!r}")
 
 
+def _power_of_two_scale(arrays: Sequence[np.ndarray]) -> float:
+    """The power of two at or just below the largest finite absolute coordinate (1.0 if none).
+
+    Dividing by it is exact, so the picture does not change, but coordinates of any
+    magnitude (1e200, 1e-200) come to [-2, 2] and their squares and cross products
+    neither overflow nor underflow.
+    """
+    finite = [np.abs(a[np.isfinite(a)]) for a in arrays if a.size]
+    largest = max((float(a.max()) for a in finite if a.size), default=0.0)
+    return float(np.ldexp(1.0, int(np.frexp(largest)[1]) - 1)) if largest > 0 else 1.0
+
+
 def _camera_frame(elev: float, azim: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Unit vectors (towards camera, screen right, screen up) of a matplotlib 3D view."""
     e, a = np.radians(elev), np.radians(azim)
@@ -273,9 +285,10 @@ def render_meshes(
         Same length as ``meshes``; the cage of each shape (or None), drawn as a wireframe
         of its unique edges over the shape.
     titles : sequence of str, optional
-        One title per shape, shown above its panel (first row of views only).
+        One title per shape, shown above its panel (first row of views only). Shown
+        literally: ``$`` does not start matplotlib mathtext.
     caption : str, optional
-        A line of text at the bottom of the picture.
+        A line of text at the bottom of the picture, shown literally as the titles.
     views : sequence of (elev, azim)
         Camera angles in degrees, as :meth:`Axes3D.view_init`; one row of panels per view.
     size : (int, int)
@@ -331,8 +344,15 @@ def render_meshes(
     if width < 16 or height < 16:
         raise ValueError(f"panel size must be at least 16 x 16 pixels, got {size}")
 
-    shapes = [(_to_display(V, up), F) for V, F in shapes]
-    cage_arrays = [None if c is None else (_to_display(c[0], up), c[1]) for c in cage_arrays]
+    # an exact power-of-two rescale of each panel (of all with same_scale): the same
+    # picture, without overflow or underflow for very large or small coordinates
+    units = [_power_of_two_scale([V] + ([] if c is None else [c[0]]))
+             for (V, _), c in zip(shapes, cage_arrays)]
+    if same_scale:
+        units = [max(units)] * len(units)
+    shapes = [(_to_display(V / u, up), F) for (V, F), u in zip(shapes, units)]
+    cage_arrays = [None if c is None else (_to_display(c[0] / u, up), c[1])
+                   for c, u in zip(cage_arrays, units)]
     panel_points = [
         [V] + ([] if c is None else [c[0]]) for (V, _), c in zip(shapes, cage_arrays)
     ]
@@ -358,10 +378,10 @@ def render_meshes(
             _draw_panel(ax, V, F, cage, elev, azim, limits[c], max_faces)
             if titles is not None and r == 0:
                 fig.text((c + 0.5) / ncols, 1.0 - 4.0 / total_h, titles[c], ha="center",
-                         va="top", fontsize=11)
+                         va="top", fontsize=11, parse_math=False)
     if caption:
         fig.text(0.5, 3.0 / total_h, caption, ha="center", va="bottom", fontsize=10,
-                 color="0.25")
+                 color="0.25", parse_math=False)
 
     with atomic_output(path) as tmp:
         fig.savefig(tmp, format="png", dpi=_DPI, facecolor="white")

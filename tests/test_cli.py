@@ -206,22 +206,97 @@ def test_progress_bar_only_on_a_terminal(tmp_path):
 # ------------------------------------------------------------------------- eval / render
 
 
-def test_eval_identical_is_zero():
-    result = cagekit("eval", SHAPE, SHAPE, SHAPE, "--json", "--samples", "2000")
+@pytest.fixture(scope="module")
+def eval_files(tmp_path_factory, applied):
+    """Three different meshes with the same vertices: source, target and deformed."""
+    from cagekit.io import save_mesh
+
+    folder = tmp_path_factory.mktemp("eval")
+    V, F = load_obj(SHAPE)
+    target = V * [1.3, 0.8, 1.1] + [2.0, -1.0, 0.5]
+    target[:, 0] += 0.3 * V[:, 1] ** 2  # bent: not a similar copy of the source
+    shutil.copy(SHAPE, folder / "source.obj")
+    save_mesh(folder / "target.obj", target, F)
+    shutil.copy(applied[0], folder / "deformed.obj")
+    return folder / "source.obj", folder / "target.obj", folder / "deformed.obj"
+
+
+def library_eval(source, target, deformed, **kwargs):
+    from cagekit.io import load_shape
+    from cagekit.metrics import evaluate
+
+    return evaluate(load_shape(source), load_shape(target), load_shape(deformed), **kwargs)
+
+
+def test_eval_json_matches_the_library(eval_files):
+    import itertools
+
+    source, target, deformed = eval_files
+    result = cagekit("eval", source, target, deformed, "--json", "--samples", "1000",
+                     "--seed", "3")
+    assert result.returncode == 0, result.stderr
+    assert result.stderr == ""
+    info = json.loads(result.stdout)  # one JSON object and nothing else
+    assert (info["source"], info["target"], info["deformed"]) == tuple(map(str, eval_files))
+    expected = library_eval(source, target, deformed, n_samples=1000, seed=3)
+    assert set(info) == set(expected) | {"source", "target", "deformed"}
+    for key, value in expected.items():
+        assert info[key] == pytest.approx(value, rel=1e-12, abs=0), key
+    assert info["cd"] > 0 and info["dcotlap"] > 0
+    # every other assignment of the three files to the roles gives other figures
+    for roles in list(itertools.permutations(eval_files))[1:]:
+        other = library_eval(*roles, n_samples=1000, seed=3)
+        assert (other["cd"], other["dcotlap"]) != pytest.approx(
+            (info["cd"], info["dcotlap"]), rel=1e-3), roles
+
+
+def test_eval_table_matches_the_library(eval_files):
+    result = cagekit("eval", *eval_files, "--samples", "1000", "--seed", "4")
+    assert result.returncode == 0, result.stderr
+    expected = library_eval(*eval_files, n_samples=1000, seed=4)
+    lines = result.stdout.splitlines()
+    assert len(lines) == 3 and "paper's tables" in lines[0]
+    cd_line, dcotlap_line = lines[1].split(), lines[2].split()
+    assert cd_line[:3] == ["CD", f"{expected['cd']:.6g}", f"{expected['cd_x1e2']:.4f}"]
+    assert dcotlap_line[:3] == ["dCotLap", f"{expected['dcotlap']:.6g}",
+                                f"{expected['dcotlap_x1e3']:.4f}"]
+
+
+def test_eval_identical_shapes(tmp_path):
+    names = [tmp_path / name for name in ("a.obj", "b.obj", "c.obj")]
+    for name in names:
+        shutil.copy(SHAPE, name)
+    result = cagekit("eval", *names, "--json", "--samples", "2000")
     assert result.returncode == 0, result.stderr
     info = json.loads(result.stdout)
-    assert info["cd"] == pytest.approx(0.0, abs=1e-12)
+    # no distortion; CD is the sampling resolution only (two independent sample sets)
     assert info["dcotlap"] == pytest.approx(0.0, abs=1e-12)
-    assert {"cd_x1e2", "dcotlap_x1e3"} <= set(info)
+    assert 0 < info["cd"] < 5e-3
+    assert info["cd"] == pytest.approx(library_eval(*names, n_samples=2000)["cd"], rel=1e-12)
 
 
-def test_eval_deformed_table(applied):
-    out, _ = applied
-    result = cagekit("eval", SHAPE, SHAPE, out, "--samples", "1000", "--seed", "3")
+@pytest.mark.parametrize("option, value", [("--seed", "-1"), ("--samples", "0"),
+                                           ("--seed", "1.5")])
+def test_eval_options_out_of_range_exit_2(option, value):
+    result = cagekit("eval", SHAPE, SHAPE, SHAPE, option, value)
+    assert_bad_input(result, option)
+
+
+def test_huge_coordinates_one_line_no_numpy_warnings(tmp_path):
+    from cagekit.io import save_mesh
+
+    CV, CF = load_obj(CAGE)
+    save_mesh(tmp_path / "big_cage.obj", CV * 1e200, CF)
+    result = cagekit("apply", SHAPE, "big_cage.obj", "big_cage.obj", "-o", "out.obj",
+                     cwd=tmp_path)
+    assert_bad_input(result, "big_cage.obj", "too large")
+    assert "Warning" not in result.stderr
+    # drawing such a shape works, and prints nothing
+    result = cagekit("render", "big_cage.obj", "--cage", "big_cage.obj", "-o", "big.png",
+                     "--size", "64", cwd=tmp_path)
     assert result.returncode == 0, result.stderr
-    assert "CD" in result.stdout and "dCotLap" in result.stdout
-    again = cagekit("eval", SHAPE, SHAPE, out, "--samples", "1000", "--seed", "3")
-    assert again.stdout == result.stdout  # seeded
+    assert result.stderr == ""
+    assert (tmp_path / "big.png").stat().st_size > 0
 
 
 def test_render_png(tmp_path, applied):
@@ -315,15 +390,16 @@ def test_apply_refuses_to_overwrite_an_input(bad_files, spelling):
     assert (bad_files / "shape.obj").read_bytes() == before
 
 
-def test_render_refuses_to_overwrite_an_input(bad_files):
-    cage = bad_files / "cage.png"  # an odd name, but an input all the same
-    shutil.copy(CAGE, bad_files / "cage.obj")
-    before = (bad_files / "cage.obj").read_bytes()
-    result = cagekit("render", "shape.obj", "--cage", "cage.obj", "-o", "cage.obj",
-                     cwd=bad_files)
-    assert_bad_input(result, "cage.obj")
-    assert (bad_files / "cage.obj").read_bytes() == before
-    assert not cage.exists()
+@pytest.mark.parametrize("role", ["mesh", "cage"])
+def test_render_refuses_to_overwrite_an_input(bad_files, role):
+    # the input is named like a valid output (a .png in an existing folder), so only the
+    # overwrite check can refuse it before the file is read
+    shutil.copy(CAGE, bad_files / "cage.png")
+    before = (bad_files / "cage.png").read_bytes()
+    inputs = ["cage.png"] if role == "mesh" else ["shape.obj", "--cage", "cage.png"]
+    result = cagekit("render", *inputs, "-o", "./cage.png", cwd=bad_files)
+    assert_bad_input(result, "cage.png", "overwrite the input")
+    assert (bad_files / "cage.png").read_bytes() == before
 
 
 def test_debug_shows_traceback(bad_files):

@@ -173,6 +173,18 @@ def test_obj_relative_indices_extra_columns_and_continuations(tmp_path):
     assert F.tolist() == [[0, 1, 2], [0, 1, 3]]
 
 
+def test_obj_comments_after_statements_are_ignored(tmp_path):
+    path = write(
+        tmp_path / "comments.obj",
+        "# a tetrahedron\nv 0 0 0 # origin\nv 1 0 0#x\nv 0 1 0\nv 0 0 1 # \\\n"
+        "f 1 2 3 # bottom\nf 1 2 4#side\nf -4 -3 \\ # continued\n -1 # the end\n"
+        "f 1 2 3 4 # a quad\n",
+    )
+    V, F = cio.load_mesh(path)
+    assert V.tolist() == [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]]
+    assert F.tolist() == [[0, 1, 2], [0, 1, 3], [0, 1, 3], [0, 1, 2], [0, 2, 3]]
+
+
 def test_ply_and_off_keep_vertex_order(tmp_path):
     V = np.array([[5.0, 5, 5], [0, 0, 0], [0, 0, 0], [1, 0, 0], [0, 1, 0]])
     off = write(
@@ -556,6 +568,7 @@ BAD_LANDMARKS = [
     ("dup.picked", "2\nPicked 1 0 0 1 a 0 0 0\nPicked 2 0 0 1 a 1 1 1\n", "duplicate label 'a'"),
     ("dup.json", '{"a": [0, 0, 0], "a": [1, 1, 1]}', "duplicate label 'a'"),
     ("nan.json", '{"a": [0, NaN, 0]}', "not finite"),
+    ("bigint.json", '{"a": [0, 1' + "0" * 400 + ', 0]}', "entry 1: coordinates of 'a' are not"),
     ("text.json", '{"a": [0, "1", 0]}', "[x, y, z] numbers"),
     ("bool.json", '{"a": [0, true, 0]}', "[x, y, z] numbers"),
     ("two.json", '{"a": [0, 1]}', "[x, y, z] numbers"),

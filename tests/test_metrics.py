@@ -94,17 +94,59 @@ def test_surface_samples_mesh_and_clouds():
     assert len(set(rows)) == 50 and rows == sorted(rows)
 
 
-def test_chamfer_of_surfaces_identical_symmetric_seeded():
+def test_chamfer_samples_the_two_shapes_independently():
+    # Identical shapes get independent samples: CD is the sampling resolution, not 0.
+    # For n uniform samples on an area A, E[min |a - b|^2] = A / (pi n) per direction.
+    V, F = ellipsoid()
+    n = 2000
+    expected = 2 * trimesh.Trimesh(V, F, process=False).area / (np.pi * n)
+    for seed in range(3):
+        cd = chamfer(V, F, V, F, n_samples=n, seed=seed)
+        assert 0.7 * expected < cd < 1.3 * expected
+    # a barely moved copy (same faces) scores the same resolution, not its tiny shift
+    assert chamfer(V, F, bend(V, 1e-4), F, n_samples=n) > 0.7 * expected
+
+
+def test_chamfer_is_deterministic_per_seed():
     Va, Fa = ellipsoid()
     Vb, Fb = ellipsoid(axes=(1.1, 1.9, 0.6), offset=(0.05, 0, 0))
-    assert chamfer(Va, Fa, Va, Fa, n_samples=2000) == 0.0
     ab = chamfer(Va, Fa, Vb, Fb, n_samples=2000, seed=5)
     assert ab > 0
-    assert ab == chamfer(Vb, Fb, Va, Fa, n_samples=2000, seed=5)
     assert ab == chamfer(Va, Fa, Vb, Fb, n_samples=2000, seed=5)
+    assert ab == chamfer(Va.tolist(), Fa, Vb, Fb, n_samples=2000, seed=np.int64(5))
     assert ab != chamfer(Va, Fa, Vb, Fb, n_samples=2000, seed=6)
+    # swapping the shapes swaps their streams: equal in distribution, not bit for bit
+    assert chamfer(Vb, Fb, Va, Fa, n_samples=2000, seed=5) == pytest.approx(ab, rel=0.1)
     # a mesh against a cloud of its own vertices: small but not zero
     assert 0 < chamfer(Va, Fa, Va, None, n_samples=2000) < 0.05
+    for seed in (-1, 1.5, True, None):
+        with pytest.raises(InputError, match="seed"):
+            chamfer(Va, Fa, Vb, Fb, n_samples=10, seed=seed)
+
+
+def test_chamfer_of_translated_plane_adds_twice_squared_shift():
+    # A square moved along its normal by t: every nearest neighbour is t away out of the
+    # plane plus its in-plane distance, so CD = CD(identical) + 2 t^2 (same streams).
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], dtype=float)
+    F = np.array([[0, 1, 2], [1, 3, 2]])
+    n = 2000
+    same = chamfer(V, F, V, F, n_samples=n, seed=7)
+    assert same > 0
+    for t in (0.1, 0.5, 2.0):  # sample spacing ~ (1 / n) ** 0.5 = 0.022
+        moved = V + [0.0, 0.0, t]
+        cd = chamfer(V, F, moved, F, n_samples=n, seed=7)
+        assert cd == pytest.approx(same + 2 * t * t, rel=1e-9)
+
+
+def test_chamfer_decreases_as_the_shape_approaches_the_target():
+    Vs, F = ellipsoid()
+    Vt, _ = ellipsoid(axes=(1.4, 1.5, 0.9), offset=(0.3, 0.0, 0.0))
+    cds = [
+        chamfer((1 - s) * Vs + s * Vt, F, Vt, F, n_samples=2000, seed=1)
+        for s in (0.0, 0.25, 0.5, 0.75, 1.0)
+    ]
+    assert all(a > b for a, b in zip(cds, cds[1:])), cds
+    assert 0 < cds[-1] < 0.1 * cds[0]
 
 
 # ----------------------------------------------------------------------- dCotLap
@@ -148,6 +190,37 @@ def test_dcotlap_ignores_duplicate_faces_and_known_value():
     assert dcotlap(V, F_dup, out) == dcotlap(V, F, out)
 
 
+def test_dcotlap_ignores_zero_area_faces():
+    # vertex 4 is on the line through vertices 0 and 1: face (0, 1, 4) has zero area
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [2, 0, 0]], dtype=float)
+    F = np.array([[0, 1, 2], [1, 3, 2]])
+    out = V.copy()
+    out[0, 2] = 1.0
+    expected = (1 + 0.25 + 0.25) / 15  # vertex 4 is in no face: an empty row of L
+    assert dcotlap(V, F, out) == pytest.approx(expected, rel=1e-14)
+    assert dcotlap(V, np.vstack([F, [[0, 1, 4]]]), out) == dcotlap(V, F, out)
+    assert dcotlap(V, np.vstack([[[4, 1, 0]], F]), out) == dcotlap(V, F, out)
+    with pytest.raises(InputError, match="zero area"):
+        dcotlap(V, [[0, 1, 4]], out)
+    with pytest.raises(InputError, match="zero area"):  # direct callers: still strict
+        cotangent_laplacian(V, np.vstack([F, [[0, 1, 4]]]))
+
+
+def test_evaluate_ignores_a_zero_area_face():
+    # a duplicated vertex (common in real meshes) and a face on it: zero area
+    V, F = ellipsoid()
+    V = np.vstack([V, V[:1]])
+    j = next(int(v) for v in F[(F == 0).any(axis=1)][0] if v != 0)  # a neighbour of 0
+    F_flat = np.vstack([F, [[0, len(V) - 1, j]]])
+    tgt = ellipsoid(axes=(1.2, 1.8, 0.7))
+    dfm = bend(V, 0.2)
+    without = evaluate((V, F), tgt, (dfm, F), n_samples=1000)
+    with_flat = evaluate((V, F_flat), tgt, (dfm, F_flat), n_samples=1000)
+    assert with_flat["dcotlap"] == without["dcotlap"] > 0
+    assert with_flat["cd"] == pytest.approx(without["cd"], rel=1e-12)
+    assert dcotlap(V, F_flat, dfm) == dcotlap(V, F, dfm)
+
+
 def test_dcotlap_rejects_bad_input():
     V, F = ellipsoid()
     with pytest.raises(InputError, match="vertices"):
@@ -173,21 +246,24 @@ def test_evaluate_keys_and_scaled_values():
     assert m["cd"] > 0 and m["dcotlap"] > 0
 
 
-def test_evaluate_target_as_deformed_gives_zero_cd():
+def test_evaluate_target_as_deformed_gives_sampling_resolution_cd():
     src = ellipsoid()
     tgt = ellipsoid(axes=(1.5, 1.0, 0.8), offset=(10.0, -3.0, 2.0))  # same topology
     m = evaluate(src, tgt, tgt, n_samples=2000)
-    assert m["cd"] == 0.0  # same faces, same frame, same seed: identical samples
+    # same surface in the same frame, sampled with two streams: the resolution only
+    Vt_n = normalize(tgt[0])[0]
+    assert m["cd"] == chamfer(Vt_n, tgt[1], Vt_n, tgt[1], n_samples=2000)
+    assert 0 < m["cd"] < 5e-3
     assert m["dcotlap"] > 0  # the target is a non-rigid deformation of the source
 
 
-def test_evaluate_similar_copy_scores_zero():
+def test_evaluate_similar_copy_scores_zero_distortion():
     # deformed = uniformly scaled and translated source, used also as the target: both
     # frames normalise it back onto the normalised source
     src = ellipsoid()
     moved = (3.0 * src[0] + [5.0, -2.0, 7.0], src[1])
     m = evaluate(src, moved, moved, n_samples=2000)
-    assert m["cd"] == 0.0
+    assert 0 < m["cd"] < 5e-3  # the sampling resolution only
     assert m["dcotlap"] <= 1e-20
 
 
