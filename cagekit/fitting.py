@@ -1,0 +1,452 @@
+"""Automatic cages: ``fit_cage`` wraps any mesh or point cloud in a verified cage.
+
+Methods
+-------
+``wrap`` (default)
+    1. CGAL's alpha wrap (through pymeshlab) of the input with a small outward offset: a
+       closed, 2-manifold, outward surface around the input, whatever the input (open,
+       several components, non-manifold, self-intersecting, a point cloud, which is given
+       to the wrap as a soup of tiny triangles).
+    2. libigl's QSlim decimation with ``block_intersections`` (no collapse may make the
+       cage intersect itself), halving the face count step by step down to the request,
+       with a repair after each step: decimation can move the surface inward through the
+       input, so every sample of the input that is not at least ``margin`` inside the cage
+       pushes the vertices of its closest cage face outward along their normals by the
+       missing depth, repeated until no sample is left (at most ``max_repairs`` rounds).
+    3. Verification (:func:`cage_report`); if a check fails, the next, larger offset is
+       tried (``offsets``), and when none passes a :class:`CageFitError` is raised.
+``template``
+    The paper's 42-vertex icosphere (:func:`template_cage`), centred on the bounding box and
+    shrunk radially by a linear program: with ``s_i = 1 / r_i`` a point ``c + rho u`` lies
+    inside the radial cage when ``rho (a s_a + b s_b + g s_g) <= 1``, where ``u = a u_a +
+    b u_b + g u_g`` in the spherical triangle it falls in. Maximising ``sum s_i`` under these
+    constraints for every sample (with a margin) gives the tightest radial cage that
+    provably encloses them; it stays embedded because it is a radial graph.
+
+Both methods work in a frame where the input's bounding-box diagonal is 1 and map the cage
+back to the input's frame. Every returned cage has passed every check of
+:func:`cage_report`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cagekit.errors import InputError
+
+__all__ = ["fit_cage", "cage_report", "template_cage", "CageFitError", "METHODS"]
+
+METHODS = ("wrap", "template")
+
+
+class CageFitError(InputError):
+    """No cage meeting every guarantee could be built for this input."""
+
+
+def template_cage():
+    """The paper's template cage: a 42-vertex, 80-face icosphere of radius 1.
+
+    Returns
+    -------
+    vertices : (42, 3) float64
+    faces : (80, 3) int64
+
+    Examples
+    --------
+    >>> v, f = template_cage()
+    >>> v.shape, f.shape
+    ((42, 3), (80, 3))
+    """
+    from cagekit.shapes import icosphere_cage
+
+    return icosphere_cage(subdivisions=1, radius=1.0)
+
+
+# ----------------------------------------------------------------------------- input
+
+
+def _as_shape(shape_v, shape_f):
+    v = np.asarray(shape_v, dtype=np.float64)
+    if v.ndim != 2 or v.shape[1] != 3:
+        raise InputError(f"shape vertices must be an (n, 3) array, got {v.shape}")
+    if len(v) < 2:
+        raise InputError("a cage needs a shape with at least two distinct points")
+    if not np.all(np.isfinite(v)):
+        raise InputError("shape has NaN or inf coordinates")
+    f = np.zeros((0, 3), np.int64) if shape_f is None else np.asarray(shape_f)
+    f = f.reshape(-1, 3).astype(np.int64)
+    if len(f) and (f.min() < 0 or f.max() >= len(v)):
+        raise InputError("shape face index out of range")
+    if np.linalg.norm(np.ptp(v, axis=0)) == 0:
+        raise InputError("all points of the shape coincide: nothing to cage")
+    return v, f
+
+
+def _frame(v):
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    return 0.5 * (lo + hi), float(np.linalg.norm(hi - lo))
+
+
+def _samples(v, f, n, seed):
+    """Vertices plus ``n`` area-uniform samples (mesh) or the points themselves (cloud)."""
+    if len(f) == 0:
+        return v
+    from cagekit.geometry import face_areas
+
+    areas = face_areas(v, f)
+    keep = areas > 0
+    if not keep.any():
+        return v
+    rng = np.random.default_rng(seed)
+    idx = rng.choice(np.flatnonzero(keep), size=n, p=areas[keep] / areas[keep].sum())
+    r1, r2 = rng.random(n), rng.random(n)
+    s = np.sqrt(r1)
+    bary = np.stack([1 - s, s * (1 - r2), s * r2], axis=1)
+    pts = np.einsum("ni,nic->nc", bary, v[f[idx]])
+    return np.vstack([v, pts])
+
+
+# ----------------------------------------------------------------------------- wrap
+
+
+def _alpha_wrap(v, f, alpha, offset):
+    """Alpha wrap of a mesh or cloud (unit-diagonal frame); returns (V, F) or None."""
+    import pymeshlab
+
+    loose = np.setdiff1d(np.arange(len(v)), f.ravel())
+    if len(loose):
+        # points without faces (a cloud, or unreferenced vertices, which must be enclosed
+        # too): pymeshlab's alpha wrap crashes on faceless meshes, so each becomes a tiny
+        # triangle
+        e = 1e-4
+        p, n = v[loose], len(loose)
+        tiny = np.concatenate([p + [e, 0, 0], p + [0, e, 0], p + [0, 0, e]])
+        idx = len(v) + np.arange(n)
+        f = np.vstack([f, np.stack([idx, idx + n, idx + 2 * n], axis=1)])
+        v = np.vstack([v, tiny])
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(v, f))
+    ms.generate_alpha_wrap(alpha=pymeshlab.PercentageValue(alpha * 100),
+                           offset=pymeshlab.PercentageValue(offset * 100))
+    m = ms.current_mesh()
+    if m.face_number() == 0:
+        return None
+    return (np.asarray(m.vertex_matrix(), dtype=np.float64),
+            np.asarray(m.face_matrix(), dtype=np.int64))
+
+
+def _decimate(v, f, faces):
+    import igl
+
+    if len(f) <= faces:
+        return v, f
+    out = igl.qslim(np.asfortranarray(v), np.asfortranarray(f.astype(np.int32)), int(faces),
+                    True)
+    return np.ascontiguousarray(out[0]), np.ascontiguousarray(out[1], dtype=np.int64)
+
+
+def _decimate_enclosing(cv, cf, faces, samples, margin, rounds):
+    """Halve the face count step by step down to ``faces``, repairing after each step.
+
+    One large decimation can move the surface far through a thin input (the two sheets of
+    a wrapped open surface fold onto each other); small steps keep each repair small.
+    """
+    while len(cf) > faces:
+        before = len(cf)
+        cv, cf = _decimate(cv, cf, max(faces, before // 2))
+        cv = _repair(cv, cf, samples, margin, rounds)
+        if len(cf) >= before:  # blocked collapses: no progress possible
+            break
+    return cv, cf
+
+
+def _repair(cv, cf, samples, margin, rounds):
+    """Push cage faces outward until every sample is at least ``margin`` inside."""
+    import igl
+
+    # the fast (approximate) winding number is enough to choose pushes; the final checks
+    # use the exact one
+    sign = igl.SignedDistanceType.SIGNED_DISTANCE_TYPE_FAST_WINDING_NUMBER
+    for _ in range(rounds):
+        dist, face, _, _ = igl.signed_distance(samples, cv, cf, sign)
+        bad = dist > -margin
+        if not bad.any():
+            return cv
+        push = np.zeros(len(cv))
+        need = dist[bad] + 2 * margin
+        for k in range(3):
+            np.maximum.at(push, cf[face[bad], k], need)
+        cv = cv + push[:, None] * igl.per_vertex_normals(cv, cf)
+    return cv
+
+
+def _fit_wrap(v, f, faces, samples, margin, offsets, alphas, rounds, components):
+    failures = []
+    for alpha in alphas:
+        for offset in offsets:
+            wrapped = _alpha_wrap(v, f, alpha, offset)
+            if wrapped is None:
+                failures.append(f"alpha {alpha:g}, offset {offset:g}: empty wrap")
+                continue
+            cv, cf = _decimate_enclosing(*wrapped, faces, samples, margin, rounds)
+            report = _checks(cv, cf, v, f, samples, faces, components)
+            if all(report.values()):
+                return cv, cf
+            failing = ", ".join(k for k, ok in report.items() if not ok)
+            failures.append(f"alpha {alpha:g}, offset {offset:g}: {failing}")
+    raise CageFitError("could not build a cage meeting every guarantee (" + "; ".join(failures)
+                       + ")")
+
+
+# ----------------------------------------------------------------------------- template
+
+
+def _fit_template(v, samples, margin):
+    """The template icosphere shrunk radially (unit-diagonal frame); see the module doc."""
+    from scipy.optimize import linprog
+
+    tv, tf = template_cage()
+    u = tv / np.linalg.norm(tv, axis=1, keepdims=True)
+    centre = 0.5 * (v.min(axis=0) + v.max(axis=0))
+    rel = samples - centre
+    rho = np.linalg.norm(rel, axis=1)
+    keep = rho > 1e-12
+    rel, rho = rel[keep], rho[keep]
+    dirs = rel / rho[:, None]
+    # which spherical triangle each direction falls in, and its coefficients there
+    coef = np.full((len(dirs), 3), -np.inf)
+    tri = np.zeros(len(dirs), dtype=np.int64)
+    for fi, (a, b, c) in enumerate(tf):
+        m = np.linalg.inv(np.stack([u[a], u[b], u[c]], axis=1))
+        abc = dirs @ m.T
+        inside = abc.min(axis=1) >= -1e-12
+        better = inside & (abc.min(axis=1) > coef.min(axis=1))
+        coef[better] = abc[better]
+        tri[better] = fi
+    coef = np.maximum(coef, 0.0)
+    n_v = len(tv)
+    rows = np.repeat(np.arange(len(dirs)), 3)
+    cols = tf[tri].ravel()
+    from scipy.sparse import coo_matrix
+
+    grown = rho + margin
+    A = coo_matrix(((coef * grown[:, None]).ravel(), (rows, cols)),
+                   shape=(len(dirs), n_v)).tocsr()
+    b = np.ones(len(dirs))
+    bounds = [(1.0, 1.0 / 0.02)] * n_v  # radii between 0.02 and 1 (the box fits in 0.5)
+    # minimise sum_i r_i = sum_i 1 / s_i (convex) over the polytope by Frank-Wolfe steps,
+    # each a linear program; start from the tightest sphere
+    sphere = float((grown * coef.sum(axis=1)).max())  # smallest feasible sphere radius
+    s = np.full(n_v, 1.0 / min(max(sphere, 0.02), 1.0))
+    for _ in range(12):
+        res = linprog(-1.0 / s**2, A_ub=A, b_ub=b, bounds=bounds, method="highs")
+        if res.status != 0:
+            raise CageFitError(f"template cage: the linear program failed ({res.message})")
+        step = res.x - s
+        ts = np.linspace(0.0, 1.0, 21)
+        costs = [np.sum(1.0 / (s + t * step)) for t in ts]
+        best = ts[int(np.argmin(costs))]
+        if best == 0.0:
+            break
+        s = s + best * step
+    return centre + u * (1.0 / s)[:, None], tf
+
+
+# ----------------------------------------------------------------------------- checks
+
+
+def _self_intersecting_faces(v, f):
+    import pymeshlab
+
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(v, f))
+    ms.compute_selection_by_self_intersections_per_face()
+    return np.asarray(ms.current_mesh().face_selection_array(), dtype=bool)
+
+
+def _n_components(f):
+    from cagekit.cage import _components
+
+    return len(np.unique(_components(int(f.max()) + 1, f))) if len(f) else 0
+
+
+def _checks(cv, cf, v, f, samples, faces, components):
+    """The guarantees of a fitted cage, each True or False (unit-diagonal frame)."""
+    import igl
+
+    from cagekit.cage import check_cage, signed_volume
+    from cagekit.errors import CageError
+
+    out = {}
+    try:
+        oriented = np.array_equal(check_cage(cv, cf), cf)
+        out["closed_manifold"] = True
+    except CageError:
+        oriented = False
+        out["closed_manifold"] = False
+    out["outward"] = bool(oriented and signed_volume(cv, cf) > 0)
+    out["components"] = _n_components(cf) <= components
+    out["no_self_intersection"] = not _self_intersecting_faces(cv, cf).any()
+    wn = igl.winding_number(cv, cf, np.ascontiguousarray(v))
+    out["encloses_vertices"] = bool(np.all(wn >= 0.5))
+    wn = igl.winding_number(cv, cf, np.ascontiguousarray(samples))
+    out["encloses_samples"] = bool(np.all(wn >= 0.5))
+    if len(f):
+        both = _self_intersecting_faces(np.vstack([cv, v]), np.vstack([cf, f + len(cv)]))
+        alone = _self_intersecting_faces(cv, cf)
+        out["no_cut"] = not np.any(both[: len(cf)] & ~alone)
+    else:
+        out["no_cut"] = out["encloses_samples"]
+    out["face_count"] = len(cf) <= faces
+    return out
+
+
+def _shape_volume(v, f):
+    """Volume of a closed shape, else of its convex hull; and which one it is."""
+    import trimesh
+    from scipy.spatial import ConvexHull
+
+    if len(f):
+        mesh = trimesh.Trimesh(v, f, process=False)
+        if mesh.is_watertight and mesh.is_winding_consistent and abs(mesh.volume) > 0:
+            return abs(float(mesh.volume)), "shape"
+    try:
+        return float(ConvexHull(v).volume), "convex hull"
+    except Exception:  # flat or degenerate input: no volume to compare with
+        return 0.0, "none"
+
+
+def cage_report(shape_v, shape_f, cage_v, cage_f, faces: int | None = None,
+                components: int = 1, samples: int = 20000, seed: int = 0) -> dict:
+    """Every guarantee of a fitted cage and its tightness.
+
+    Parameters
+    ----------
+    shape_v : (n, 3) array_like of float
+    shape_f : (m, 3) array_like of int or None
+        Faces of the shape; None or empty for a point cloud.
+    cage_v : (k, 3) array_like of float
+    cage_f : (c, 3) array_like of int
+    faces : int, optional
+        The requested face count (default: the cage's own).
+    components : int, default 1
+        Allowed number of cage components.
+    samples : int, default 20000
+        Area-uniform samples of the shape checked for enclosure, besides its vertices.
+    seed : int, default 0
+
+    Returns
+    -------
+    dict
+        ``checks``: name -> bool (closed_manifold, outward, components,
+        no_self_intersection, encloses_vertices, encloses_samples, no_cut, face_count);
+        ``ok``: all of them; ``faces``, ``vertices``; ``volume_ratio`` (cage volume over the
+        shape's, or over its convex hull's for open shapes and clouds: ``volume_reference``
+        says which) and ``max_distance`` (largest distance from the cage surface to the
+        shape, over the shape's bounding-box diagonal).
+    """
+    import igl
+    from scipy.spatial import cKDTree
+
+    from cagekit.cage import signed_volume
+
+    v, f = _as_shape(shape_v, shape_f)
+    cv = np.asarray(cage_v, dtype=np.float64)
+    cf = np.asarray(cage_f, dtype=np.int64)
+    centre, diag = _frame(v)
+    vn, cvn = (v - centre) / diag, (cv - centre) / diag
+    pts = _samples(vn, f, samples, seed)
+    checks = _checks(cvn, cf, vn, f, pts, len(cf) if faces is None else faces, components)
+    shape_vol, reference = _shape_volume(vn, f)
+    cage_vol = signed_volume(cvn, cf)
+    cage_pts = _samples(cvn, cf, 20000, seed)
+    if len(f):
+        dist = np.sqrt(igl.point_mesh_squared_distance(cage_pts, vn, f)[0])
+    else:
+        dist = cKDTree(vn).query(cage_pts)[0]
+    return {
+        "ok": all(checks.values()),
+        "checks": checks,
+        "faces": int(len(cf)),
+        "vertices": int(len(cv)),
+        "volume_ratio": float(cage_vol / shape_vol) if shape_vol > 0 else None,
+        "volume_reference": reference,
+        "max_distance": float(dist.max()),
+    }
+
+
+# ----------------------------------------------------------------------------- main
+
+
+def fit_cage(shape_v, shape_f=None, faces: int = 200, method: str = "wrap", *,
+             components: int = 1, margin: float = 0.003, samples: int = 20000, seed: int = 0,
+             offsets=(0.01, 0.02, 0.035, 0.05, 0.08), alphas=(0.03, 0.08, 0.2),
+             max_repairs: int = 30):
+    """Build a cage around a mesh or point cloud, verified before it is returned.
+
+    Parameters
+    ----------
+    shape_v : (n, 3) array_like of float
+        The shape's vertices (any units and orientation).
+    shape_f : (m, 3) array_like of int, optional
+        Its faces; None or empty for a point cloud. Open, multi-component, non-manifold,
+        self-intersecting input and duplicate or degenerate faces are all accepted.
+    faces : int, default 200
+        Largest number of cage faces (``wrap``); the template always has 80.
+    method : {"wrap", "template"}, default "wrap"
+    components : int, default 1
+        Largest number of cage components (``wrap``).
+    margin : float, default 0.003
+        How far inside the cage every sample must be, relative to the bounding-box diagonal.
+    samples : int, default 20000
+        Area-uniform samples of the surface that must be enclosed, besides the vertices.
+    seed : int, default 0
+    offsets, alphas : sequences of float
+        Wrap offsets and alpha values (relative to the diagonal) tried in turn (``wrap``).
+    max_repairs : int, default 30
+        Rounds of the outward repair after decimation (``wrap``).
+
+    Returns
+    -------
+    cage_v : (k, 3) float64
+        In the shape's frame and units.
+    cage_f : (c, 3) int64
+        Closed, 2-manifold, outward, not self-intersecting, ``c <= faces``.
+
+    Raises
+    ------
+    InputError
+        Empty shape, NaN, a single point, an unknown method, ``faces < 4``.
+    CageFitError
+        No cage meeting every guarantee was found.
+
+    Examples
+    --------
+    >>> from cagekit.shapes import box_cage
+    >>> v, f = box_cage(3, half_extent=(1.0, 0.5, 0.25))
+    >>> cv, cf = fit_cage(v, f, faces=100)
+    >>> len(cf) <= 100
+    True
+    """
+    if method not in METHODS:
+        raise InputError(f"unknown cage method {method!r}; available: {', '.join(METHODS)}")
+    if int(faces) < 4:
+        raise InputError(f"a cage needs at least 4 faces, {faces} requested")
+    v, f = _as_shape(shape_v, shape_f)
+    centre, diag = _frame(v)
+    vn = (v - centre) / diag
+    pts = _samples(vn, f, samples, seed)
+    if method == "template":
+        # a wider margin when input edges cross the cage between samples
+        for grow in (1, 4, 16):
+            cvn, cf = _fit_template(vn, pts, margin * grow)
+            report = _checks(cvn, cf, vn, f, pts, 80, 1)
+            if all(report.values()):
+                break
+        else:
+            failing = ", ".join(k for k, ok in report.items() if not ok)
+            raise CageFitError(f"the template cage fails: {failing}")
+    else:
+        cvn, cf = _fit_wrap(vn, f, int(faces), pts, margin, offsets, alphas, max_repairs,
+                            components)
+    return cvn * diag + centre, cf
