@@ -145,55 +145,121 @@ def _decimate(v, f, faces):
     return np.ascontiguousarray(out[0]), np.ascontiguousarray(out[1], dtype=np.int64)
 
 
-def _decimate_enclosing(cv, cf, faces, samples, margin, rounds):
-    """Halve the face count step by step down to ``faces``, repairing after each step.
+def _signed_distance(points, cv, cf):
+    """Signed distance to a closed, oriented cage (negative inside), closest faces and points.
 
-    One large decimation can move the surface far through a thin input (the two sheets of
-    a wrapped open surface fold onto each other); small steps keep each repair small.
+    libigl's pseudonormal sign is exact for a closed, 2-manifold, self-intersection-free
+    cage and about 4x faster than the winding-number sign; the final checks use the exact
+    winding number regardless.
     """
+    import igl
+
+    sign = igl.SignedDistanceType.SIGNED_DISTANCE_TYPE_PSEUDONORMAL
+    return igl.signed_distance(np.ascontiguousarray(points), cv, cf, sign)[:3]
+
+
+def _repair(cv, cf, samples, margin, rounds):
+    """Push cage vertices outward until every sample is at least ``margin`` inside.
+
+    A sample short of ``margin`` by ``need`` at barycentric coordinates ``b`` on its
+    closest cage face asks vertex ``k`` of that face for ``need b_k / |b|^2`` along the
+    vertex normal (the smallest push that covers it, to first order); each vertex takes the
+    largest request. Returns the repaired vertices, or None when ``rounds`` rounds did not
+    suffice.
+    """
+    import igl
+
+    for _ in range(rounds):
+        dist, face, closest = _signed_distance(samples, cv, cf)
+        bad = np.flatnonzero(dist > -margin)
+        if len(bad) == 0:
+            return cv
+        tri = cf[face[bad]]
+        bary = igl.barycentric_coordinates(np.ascontiguousarray(closest[bad]),
+                                           np.ascontiguousarray(cv[tri[:, 0]]),
+                                           np.ascontiguousarray(cv[tri[:, 1]]),
+                                           np.ascontiguousarray(cv[tri[:, 2]]))
+        bary = np.clip(bary, 0.0, 1.0)
+        need = (dist[bad] + 1.5 * margin) / np.maximum((bary**2).sum(axis=1), 1e-12)
+        push = np.zeros(len(cv))
+        for k in range(3):
+            np.maximum.at(push, tri[:, k], need * bary[:, k])
+        cv = cv + push[:, None] * igl.per_vertex_normals(cv, cf)
+    return None
+
+
+def _decimate_enclosing(cv, cf, faces, samples, margin, rounds):
+    """Decimate to ``faces`` and repair; if one step cannot be repaired, halve step by step.
+
+    One large decimation can fold the two sheets of a wrapped thin or open input onto each
+    other, beyond repair; small steps keep each repair small. Returns None on failure.
+    """
+    once = _decimate(cv, cf, faces)
+    repaired = _repair(once[0], once[1], samples, margin, rounds)
+    if repaired is not None:
+        return repaired, once[1]
     while len(cf) > faces:
         before = len(cf)
         cv, cf = _decimate(cv, cf, max(faces, before // 2))
         cv = _repair(cv, cf, samples, margin, rounds)
+        if cv is None:
+            return None
         if len(cf) >= before:  # blocked collapses: no progress possible
             break
     return cv, cf
 
 
-def _repair(cv, cf, samples, margin, rounds):
-    """Push cage faces outward until every sample is at least ``margin`` inside."""
+def _push_cut_faces(cv, cf, v, f, margin, rounds=4):
+    """Push the vertices of cage faces that cross an input face outward by ``margin``.
+
+    Samples can all lie inside while an input edge between them pokes through a cage face;
+    the exact test finds those faces. Returns the vertices, or None if cuts remain.
+    """
     import igl
 
-    # the fast (approximate) winding number is enough to choose pushes; the final checks
-    # use the exact one
-    sign = igl.SignedDistanceType.SIGNED_DISTANCE_TYPE_FAST_WINDING_NUMBER
     for _ in range(rounds):
-        dist, face, _, _ = igl.signed_distance(samples, cv, cf, sign)
-        bad = dist > -margin
-        if not bad.any():
+        cut = _cut_faces(cv, cf, v, f)
+        if not cut.any():
             return cv
         push = np.zeros(len(cv))
-        need = dist[bad] + 2 * margin
-        for k in range(3):
-            np.maximum.at(push, cf[face[bad], k], need)
+        push[np.unique(cf[cut])] = 2 * margin
         cv = cv + push[:, None] * igl.per_vertex_normals(cv, cf)
-    return cv
+    return None
+
+
+def default_alphas(faces: int) -> tuple[float, ...]:
+    """Alpha values tried by the wrap for a face budget: about ``0.9 / sqrt(faces)`` first.
+
+    A coarser wrap is enough for a coarser cage and is several times faster to build; the
+    larger values are fall-backs for inputs the first wrap cannot serve (very thin parts).
+    """
+    first = float(np.clip(0.9 / np.sqrt(max(faces, 1)), 0.02, 0.1))
+    return (first, 2 * first, 0.2)
 
 
 def _fit_wrap(v, f, faces, samples, margin, offsets, alphas, rounds, components):
     failures = []
     for alpha in alphas:
         for offset in offsets:
+            where = f"alpha {alpha:g}, offset {offset:g}"
             wrapped = _alpha_wrap(v, f, alpha, offset)
             if wrapped is None:
-                failures.append(f"alpha {alpha:g}, offset {offset:g}: empty wrap")
+                failures.append(f"{where}: empty wrap")
                 continue
-            cv, cf = _decimate_enclosing(*wrapped, faces, samples, margin, rounds)
+            decimated = _decimate_enclosing(*wrapped, faces, samples, margin, rounds)
+            if decimated is None:
+                failures.append(f"{where}: the decimated wrap could not be repaired")
+                continue
+            cv, cf = decimated
+            if len(f):
+                cv = _push_cut_faces(cv, cf, v, f, margin)
+                if cv is None:
+                    failures.append(f"{where}: no_cut")
+                    continue
             report = _checks(cv, cf, v, f, samples, faces, components)
             if all(report.values()):
                 return cv, cf
-            failing = ", ".join(k for k, ok in report.items() if not ok)
-            failures.append(f"alpha {alpha:g}, offset {offset:g}: {failing}")
+            failures.append(f"{where}: " + ", ".join(k for k, ok in report.items() if not ok))
     raise CageFitError("could not build a cage meeting every guarantee (" + "; ".join(failures)
                        + ")")
 
@@ -270,6 +336,12 @@ def _n_components(f):
     return len(np.unique(_components(int(f.max()) + 1, f))) if len(f) else 0
 
 
+def _cut_faces(cv, cf, v, f):
+    """Cage faces that intersect an input face (exact test, pymeshlab), (c,) bool."""
+    both = _self_intersecting_faces(np.vstack([cv, v]), np.vstack([cf, f + len(cv)]))
+    return both[: len(cf)] & ~_self_intersecting_faces(cv, cf)
+
+
 def _checks(cv, cf, v, f, samples, faces, components):
     """The guarantees of a fitted cage, each True or False (unit-diagonal frame)."""
     import igl
@@ -286,15 +358,15 @@ def _checks(cv, cf, v, f, samples, faces, components):
         out["closed_manifold"] = False
     out["outward"] = bool(oriented and signed_volume(cv, cf) > 0)
     out["components"] = _n_components(cf) <= components
-    out["no_self_intersection"] = not _self_intersecting_faces(cv, cf).any()
-    wn = igl.winding_number(cv, cf, np.ascontiguousarray(v))
-    out["encloses_vertices"] = bool(np.all(wn >= 0.5))
+    alone = _self_intersecting_faces(cv, cf)
+    out["no_self_intersection"] = not alone.any()
+    # the samples begin with the vertices (see _samples): one winding-number pass
     wn = igl.winding_number(cv, cf, np.ascontiguousarray(samples))
+    out["encloses_vertices"] = bool(np.all(wn[: len(v)] >= 0.5))
     out["encloses_samples"] = bool(np.all(wn >= 0.5))
     if len(f):
         both = _self_intersecting_faces(np.vstack([cv, v]), np.vstack([cf, f + len(cv)]))
-        alone = _self_intersecting_faces(cv, cf)
-        out["no_cut"] = not np.any(both[: len(cf)] & ~alone)
+        out["no_cut"] = not np.any(both[: len(cf)] & ~alone)  # as _cut_faces, reusing alone
     else:
         out["no_cut"] = out["encloses_samples"]
     out["face_count"] = len(cf) <= faces
@@ -379,8 +451,8 @@ def cage_report(shape_v, shape_f, cage_v, cage_f, faces: int | None = None,
 
 
 def fit_cage(shape_v, shape_f=None, faces: int = 200, method: str = "wrap", *,
-             components: int = 1, margin: float = 0.003, samples: int = 20000, seed: int = 0,
-             offsets=(0.01, 0.02, 0.035, 0.05, 0.08), alphas=(0.03, 0.08, 0.2),
+             components: int = 1, margin: float = 0.001, samples: int = 20000, seed: int = 0,
+             offsets=(0.004, 0.008, 0.016, 0.03, 0.06), alphas=None,
              max_repairs: int = 30):
     """Build a cage around a mesh or point cloud, verified before it is returned.
 
@@ -396,13 +468,15 @@ def fit_cage(shape_v, shape_f=None, faces: int = 200, method: str = "wrap", *,
     method : {"wrap", "template"}, default "wrap"
     components : int, default 1
         Largest number of cage components (``wrap``).
-    margin : float, default 0.003
+    margin : float, default 0.001
         How far inside the cage every sample must be, relative to the bounding-box diagonal.
     samples : int, default 20000
         Area-uniform samples of the surface that must be enclosed, besides the vertices.
     seed : int, default 0
     offsets, alphas : sequences of float
-        Wrap offsets and alpha values (relative to the diagonal) tried in turn (``wrap``).
+        Wrap offsets and alpha values (relative to the diagonal) tried in turn, every
+        offset for the first alpha, then for the next (``wrap``); alphas default to
+        :func:`default_alphas` of ``faces``.
     max_repairs : int, default 30
         Rounds of the outward repair after decimation (``wrap``).
 
@@ -447,6 +521,8 @@ def fit_cage(shape_v, shape_f=None, faces: int = 200, method: str = "wrap", *,
             failing = ", ".join(k for k, ok in report.items() if not ok)
             raise CageFitError(f"the template cage fails: {failing}")
     else:
+        if alphas is None:
+            alphas = default_alphas(int(faces))
         cvn, cf = _fit_wrap(vn, f, int(faces), pts, margin, offsets, alphas, max_repairs,
                             components)
     return cvn * diag + centre, cf
