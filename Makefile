@@ -5,7 +5,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-slow lint bench venv clean
+.PHONY: demo test test-slow lint bench bench-fit-cage venv clean
 
 $(STAMP): setup.cfg pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -32,6 +32,12 @@ lint: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/pip install -q -e '.[dev,bench]'
 	$(BIN)/python benchmarks/bench_mvc.py
+
+# needs Debian's libcgal-demo for its meshes (installed here when missing and run as root)
+bench-fit-cage: $(STAMP)
+	$(BIN)/pip install -q -e '.[dev,bench]'
+	test -f /usr/share/doc/libcgal-dev/data.tar.gz || apt-get install -y -q libcgal-demo
+	$(BIN)/python benchmarks/bench_fit_cage.py
 
 clean:
 	rm -rf out .pytest_cache build *.egg-info

@@ -125,13 +125,17 @@ def run_lazy_cage(v, f, faces):
 
 
 def evaluate(v, f, result, seconds, error, faces):
+    from cagekit.errors import InputError
     from cagekit.fitting import cage_report
 
     row = {"seconds": seconds, "error": error}
-    if result is None:
+    try:
+        report = None if result is None else cage_report(v, f, *result, faces=faces)
+    except InputError as exc:  # for example an empty cage
+        report, row["error"] = None, str(exc)
+    if report is None:
         row.update(ok=False, checks={}, volume_ratio=None, max_distance=None, faces=None)
         return row
-    report = cage_report(v, f, *result, faces=faces)
     row.update(ok=report["ok"], checks=report["checks"], volume_ratio=report["volume_ratio"],
                max_distance=report["max_distance"], faces=report["faces"],
                volume_reference=report["volume_reference"])

@@ -159,3 +159,51 @@ def test_report_detects_a_cage_that_cuts_the_shape():
     assert not report["ok"]
     assert not report["checks"]["encloses_vertices"]
     assert not report["checks"]["no_cut"]
+
+
+def test_bundled_template_cage_file_is_template_cage():
+    import os
+
+    from cagekit.io import load_mesh
+
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    v, f = load_mesh(os.path.join(root, "data", "template_cage.obj"))
+    tv, tf = template_cage()
+    np.testing.assert_array_equal(f, tf)
+    np.testing.assert_allclose(v, tv, rtol=0, atol=1e-15)
+
+
+def test_mesh_objects_and_pairs_are_accepted():
+    v, f = star_blob(3)
+    expected = fit_cage(v, f, faces=80)
+    for shape in (trimesh.Trimesh(v, f, process=False), (v, f)):
+        cv, cf = fit_cage(shape, faces=80)
+        assert np.array_equal(cv, expected[0]) and np.array_equal(cf, expected[1])
+    cloud_v, _ = cloud()
+    a = fit_cage(trimesh.PointCloud(cloud_v), faces=80)
+    b = fit_cage(cloud_v, faces=80)
+    assert np.array_equal(a[0], b[0])
+    with pytest.raises(InputError, match="not both"):
+        fit_cage(trimesh.Trimesh(v, f, process=False), f)
+
+
+def test_one_cage_component_per_input_component_when_allowed():
+    v, f = two_spheres()
+    one = fit_cage(v, f, faces=200)
+    two = fit_cage(v, f, faces=200, components=2)
+    r1 = cage_report(v, f, *one, faces=200)
+    r2 = cage_report(v, f, *two, faces=200, components=2)
+    assert r1["ok"] and r2["ok"]
+    from cagekit.fitting import _n_components
+
+    assert _n_components(one[1]) == 1
+    assert _n_components(two[1]) == 2  # the far-apart spheres get a cage each
+    assert r2["volume_ratio"] < r1["volume_ratio"]
+    # two components are refused where one is asked for
+    assert not cage_report(v, f, *two, faces=200, components=1)["checks"]["components"]
+
+
+def test_report_refuses_an_empty_cage():
+    v, f = torus()
+    with pytest.raises(InputError, match="at least 4"):
+        cage_report(v, f, np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64))
