@@ -168,6 +168,24 @@ def summary(rows, who, budget):
           f"{fmt(statistics.median(ratios) if ratios else None, '.3f')}, median max distance "
           f"{fmt(statistics.median(dists) if dists else None, '.4f')}, median seconds "
           f"{statistics.median(secs):.2f}")
+    closed = [r["volume_ratio"] for r in ok if r.get("volume_reference") == "shape"]
+    if closed:
+        print(f"{'':<9} {'':>5}        closed meshes only (ratio to the shape's volume): "
+              f"{len(closed)}, median volume ratio {statistics.median(closed):.3f}")
+
+
+def paired_summary(rows, budget):
+    """Median volume ratios over the meshes where both methods met every guarantee."""
+    def by_mesh(who):
+        return {r["mesh"]: r for r in rows if r["who"] == who and r["budget"] == budget}
+
+    ours, peer = by_mesh("cagekit"), by_mesh("lazy_cage")
+    both = [m for m in ours if ours[m]["ok"] and m in peer and peer[m]["ok"]]
+    if both:
+        print(f"{budget:>5} faces, meshes where both meet every guarantee ({len(both)}): "
+              f"median volume ratio cagekit "
+              f"{statistics.median(ours[m]['volume_ratio'] for m in both):.3f}, lazy_cage "
+              f"{statistics.median(peer[m]['volume_ratio'] for m in both):.3f}")
 
 
 def main(argv=None):
@@ -202,6 +220,7 @@ def main(argv=None):
     for budget in args.faces:
         for who in ("cagekit", "lazy_cage"):
             summary(rows, who, budget)
+        paired_summary(rows, budget)
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(rows, fh, indent=1)

@@ -14,10 +14,13 @@ Methods
        the wrap on both sides, so some of the input ends up outside; a repair pushes cage
        vertices out along their normals: a sample short of ``margin`` by ``need`` at
        barycentric coordinates ``b`` on its closest cage face asks vertex ``k`` for
-       ``need b_k / |b|^2`` (the least push that covers it, to first order), each vertex
-       takes its largest request, until every sample is ``margin`` inside. When one
-       decimation is beyond repair (thin or open inputs, whose two wrapped sheets fold onto
-       each other), the face count is halved step by step with a repair after each.
+       ``need b_k / (|b|^2 (n_k . N))`` (the least push that covers it, to first order;
+       ``n_k . N``, the vertex normal's share along the face normal, is clipped to
+       [0.6, 1]), each vertex takes its largest request, until every sample is ``margin``
+       inside. When one decimation is beyond repair (thin or open inputs, whose two
+       wrapped sheets fold onto each other; the repair stops when, after 8 rounds, the
+       worst violation has doubled), the face count is halved step by step with a repair
+       after each.
     3. Samples can all be inside while an input edge between them pokes through a cage
        face; the exact triangle-triangle test (pymeshlab) finds such faces and their
        vertices are pushed out by ``2 margin``, a few rounds at most.
@@ -182,9 +185,10 @@ def _repair(cv, cf, samples, margin, rounds):
 
     A sample short of ``margin`` by ``need`` at barycentric coordinates ``b`` on its
     closest cage face asks vertex ``k`` of that face for ``need b_k / |b|^2`` along the
-    vertex normal (the smallest push that covers it, to first order); each vertex takes the
-    largest request. Returns the repaired vertices, or None when ``rounds`` rounds did not
-    suffice.
+    vertex normal, divided by the normal's share along the face normal (the smallest push
+    that covers it, to first order); each vertex takes the largest request. Returns the
+    repaired vertices, or None when ``rounds`` rounds did not suffice or the repair
+    diverges.
     """
     import igl
 
