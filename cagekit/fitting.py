@@ -288,7 +288,8 @@ def _fit_wrap(v, f, faces, samples, margin, offsets, alphas, rounds, components)
                 if cv is None:
                     failures.append(f"{where}: no_cut")
                     continue
-            report = _checks(cv, cf, v, f, samples, faces, components)
+            report = _checks(cv, cf, v, f, samples, faces, components,
+                             cut_checked=bool(len(f)))
             if all(report.values()):
                 return cv, cf
             failures.append(f"{where}: " + ", ".join(k for k, ok in report.items() if not ok))
@@ -374,8 +375,12 @@ def _cut_faces(cv, cf, v, f):
     return both[: len(cf)] & ~_self_intersecting_faces(cv, cf)
 
 
-def _checks(cv, cf, v, f, samples, faces, components):
-    """The guarantees of a fitted cage, each True or False (unit-diagonal frame)."""
+def _checks(cv, cf, v, f, samples, faces, components, cut_checked=False):
+    """The guarantees of a fitted cage, each True or False (unit-diagonal frame).
+
+    ``cut_checked``: the caller has just run the same exact cut test (:func:`_cut_faces`)
+    on these very vertices and found no cut, so it is not run again.
+    """
     import igl
 
     from cagekit.cage import check_cage, signed_volume
@@ -396,7 +401,9 @@ def _checks(cv, cf, v, f, samples, faces, components):
     wn = igl.winding_number(cv, cf, np.ascontiguousarray(samples))
     out["encloses_vertices"] = bool(np.all(wn[: len(v)] >= 0.5))
     out["encloses_samples"] = bool(np.all(wn >= 0.5))
-    if len(f):
+    if cut_checked:
+        out["no_cut"] = True
+    elif len(f):
         both = _self_intersecting_faces(np.vstack([cv, v]), np.vstack([cf, f + len(cv)]))
         out["no_cut"] = not np.any(both[: len(cf)] & ~alone)  # as _cut_faces, reusing alone
     else:
