@@ -113,19 +113,11 @@ def _samples(v, f, n, seed):
     """Vertices plus ``n`` area-uniform samples (mesh) or the points themselves (cloud)."""
     if len(f) == 0:
         return v
-    from cagekit.geometry import face_areas
+    from cagekit.geometry import face_areas, sample_surface
 
-    areas = face_areas(v, f)
-    keep = areas > 0
-    if not keep.any():
+    if not face_areas(v, f).sum() > 0:
         return v
-    rng = np.random.default_rng(seed)
-    idx = rng.choice(np.flatnonzero(keep), size=n, p=areas[keep] / areas[keep].sum())
-    r1, r2 = rng.random(n), rng.random(n)
-    s = np.sqrt(r1)
-    bary = np.stack([1 - s, s * (1 - r2), s * r2], axis=1)
-    pts = np.einsum("ni,nic->nc", bary, v[f[idx]])
-    return np.vstack([v, pts])
+    return np.vstack([v, sample_surface(v, f, n, seed=seed)])
 
 
 # ----------------------------------------------------------------------------- wrap
@@ -291,7 +283,7 @@ def _fit_wrap(v, f, faces, samples, margin, offsets, alphas, rounds, components)
             report = _checks(cv, cf, v, f, samples, faces, components,
                              cut_checked=bool(len(f)))
             if all(report.values()):
-                return cv, cf
+                return cv, cf, report
             failures.append(f"{where}: " + ", ".join(k for k, ok in report.items() if not ok))
     raise CageFitError("could not build a cage meeting every guarantee (" + "; ".join(failures)
                        + ")")
@@ -369,10 +361,15 @@ def _n_components(f):
     return len(np.unique(_components(int(f.max()) + 1, f))) if len(f) else 0
 
 
-def _cut_faces(cv, cf, v, f):
-    """Cage faces that intersect an input face (exact test, pymeshlab), (c,) bool."""
+def _cut_faces(cv, cf, v, f, alone=None):
+    """Cage faces that intersect an input face (exact test, pymeshlab), (c,) bool.
+
+    ``alone``: the cage's own self-intersecting faces, when already known.
+    """
+    if alone is None:
+        alone = _self_intersecting_faces(cv, cf)
     both = _self_intersecting_faces(np.vstack([cv, v]), np.vstack([cf, f + len(cv)]))
-    return both[: len(cf)] & ~_self_intersecting_faces(cv, cf)
+    return both[: len(cf)] & ~alone
 
 
 def _checks(cv, cf, v, f, samples, faces, components, cut_checked=False):
@@ -404,8 +401,7 @@ def _checks(cv, cf, v, f, samples, faces, components, cut_checked=False):
     if cut_checked:
         out["no_cut"] = True
     elif len(f):
-        both = _self_intersecting_faces(np.vstack([cv, v]), np.vstack([cf, f + len(cv)]))
-        out["no_cut"] = not np.any(both[: len(cf)] & ~alone)  # as _cut_faces, reusing alone
+        out["no_cut"] = not _cut_faces(cv, cf, v, f, alone).any()
     else:
         out["no_cut"] = out["encloses_samples"]
     out["face_count"] = len(cf) <= faces
@@ -462,11 +458,6 @@ def cage_report(shape_v, shape_f, cage_v, cage_f, faces: int | None = None,
         says which) and ``max_distance`` (largest distance from the cage surface to the
         shape, over the shape's bounding-box diagonal).
     """
-    import igl
-    from scipy.spatial import cKDTree
-
-    from cagekit.cage import signed_volume
-
     v, f = _as_shape(shape_v, shape_f)
     cv = np.asarray(cage_v, dtype=np.float64)
     cf = np.asarray(cage_f, dtype=np.int64)
@@ -479,6 +470,16 @@ def cage_report(shape_v, shape_f, cage_v, cage_f, faces: int | None = None,
     vn, cvn = (v - centre) / diag, (cv - centre) / diag
     pts = _samples(vn, f, samples, seed)
     checks = _checks(cvn, cf, vn, f, pts, len(cf) if faces is None else faces, components)
+    return _report(checks, vn, f, cvn, cf, seed)
+
+
+def _report(checks, vn, f, cvn, cf, seed):
+    """:func:`cage_report`'s dict from the checks and the cage (unit-diagonal frame)."""
+    import igl
+    from scipy.spatial import cKDTree
+
+    from cagekit.cage import signed_volume
+
     shape_vol, reference = _shape_volume(vn, f)
     cage_vol = signed_volume(cvn, cf)
     cage_pts = _samples(cvn, cf, 20000, seed)
@@ -490,7 +491,7 @@ def cage_report(shape_v, shape_f, cage_v, cage_f, faces: int | None = None,
         "ok": all(checks.values()),
         "checks": checks,
         "faces": int(len(cf)),
-        "vertices": int(len(cv)),
+        "vertices": int(len(cvn)),
         "volume_ratio": float(cage_vol / shape_vol) if shape_vol > 0 else None,
         "volume_reference": reference,
         "max_distance": float(dist.max()),
@@ -503,7 +504,7 @@ def cage_report(shape_v, shape_f, cage_v, cage_f, faces: int | None = None,
 def fit_cage(shape_v, shape_f=None, faces: int = 200, method: str = "wrap", *,
              components: int = 1, margin: float = 0.001, samples: int = 20000, seed: int = 0,
              offsets=(0.004, 0.008, 0.016, 0.03, 0.06), alphas=None,
-             max_repairs: int = 30):
+             max_repairs: int = 30, return_report: bool = False):
     """Build a cage around a mesh or point cloud, verified before it is returned.
 
     Parameters
@@ -530,6 +531,9 @@ def fit_cage(shape_v, shape_f=None, faces: int = 200, method: str = "wrap", *,
         :func:`default_alphas` of ``faces``.
     max_repairs : int, default 30
         Rounds of the outward repair after decimation (``wrap``).
+    return_report : bool, default False
+        Also return :func:`cage_report`'s dict for the cage, from the checks the fit has
+        just passed (``face_count`` is judged against ``faces``, or 80 for the template).
 
     Returns
     -------
@@ -537,6 +541,8 @@ def fit_cage(shape_v, shape_f=None, faces: int = 200, method: str = "wrap", *,
         In the shape's frame and units.
     cage_f : (c, 3) int64
         Closed, 2-manifold, outward, not self-intersecting, ``c <= faces``.
+    report : dict
+        Only when ``return_report`` is True; see :func:`cage_report`.
 
     Raises
     ------
@@ -574,6 +580,9 @@ def fit_cage(shape_v, shape_f=None, faces: int = 200, method: str = "wrap", *,
     else:
         if alphas is None:
             alphas = default_alphas(int(faces))
-        cvn, cf = _fit_wrap(vn, f, int(faces), pts, margin, offsets, alphas, max_repairs,
-                            components)
-    return cvn * diag + centre, cf
+        cvn, cf, report = _fit_wrap(vn, f, int(faces), pts, margin, offsets, alphas,
+                                    max_repairs, components)
+    cage_v = cvn * diag + centre
+    if return_report:
+        return cage_v, cf, _report(report, vn, f, cvn, cf, seed)
+    return cage_v, cf
