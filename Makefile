@@ -5,7 +5,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-slow lint bench bench-fit-cage venv clean
+.PHONY: demo test test-slow lint bench bench-fit-cage bench-deform venv clean
 
 $(STAMP): setup.cfg pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -16,9 +16,8 @@ venv: $(STAMP)
 
 demo: $(STAMP)
 	mkdir -p out
-	$(BIN)/cagekit apply data/example/shape.obj data/example/cage.obj data/example/cage_deformed.obj -o out/demo_deformed.obj
-	$(BIN)/cagekit render data/example/shape.obj out/demo_deformed.obj --cage data/example/cage.obj --cage data/example/cage_deformed.obj -o out/demo.png
-	@echo "wrote out/demo_deformed.obj and out/demo.png"
+	$(BIN)/cagekit deform data/example/chair_source.obj data/example/chair_target.obj -o out/demo_deformed.obj --symmetry x --save-cage out/demo_cage.obj --preview out/demo.png
+	@echo "wrote out/demo_deformed.obj, out/demo_cage.obj, out/demo_cage_deformed.obj and out/demo.png"
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q -n 2 tests
@@ -38,6 +37,11 @@ bench-fit-cage: $(STAMP)
 	$(BIN)/pip install -q -e '.[dev,bench]'
 	test -f /usr/share/doc/libcgal-dev/data.tar.gz || apt-get install -y -q libcgal-demo
 	$(BIN)/python benchmarks/bench_fit_cage.py
+
+# needs libcgal-demo for the animal pairs (installed here when missing and run as root)
+bench-deform: $(STAMP)
+	test -f /usr/share/doc/libcgal-dev/data.tar.gz || apt-get install -y -q libcgal-demo
+	$(BIN)/python benchmarks/bench_deform.py
 
 clean:
 	rm -rf out .pytest_cache build *.egg-info

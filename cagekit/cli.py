@@ -246,6 +246,10 @@ _debug_option = click.option(
     "--debug", is_flag=True, expose_value=False, is_eager=True,
     help="Show the full traceback on errors.",
 )
+_preview_up_option = click.option(
+    "--up", type=click.Choice(["x", "y", "z"]), default="y", show_default=True,
+    help="Vertical axis of the shapes in the preview.",
+)
 _json_option = click.option(
     "--json", "as_json", is_flag=True,
     help="Print one JSON object with the results on stdout (and nothing else there).",
@@ -509,8 +513,7 @@ def render(ctx, meshes, out, cages, titles, caption, views, size, up, same_scale
 @click.option("--preview", type=click.Path(dir_okay=False), default=None,
               help="Also draw the shape and the cage (wireframe) from two viewpoints "
                    "into this PNG.")
-@click.option("--up", type=click.Choice(["x", "y", "z"]), default="y", show_default=True,
-              help="Vertical axis of the shape in the preview.")
+@_preview_up_option
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
               help="Seed of the surface samples checked for enclosure.")
 @_json_option
@@ -563,6 +566,256 @@ def fit_cage(ctx, mesh, out, faces, method, components, preview, up, seed, as_js
         click.echo(f"wrote {out}: {report['faces']}-face cage, every check passed; volume "
                    f"{ratio_text} x the {report['volume_reference']}'s, largest distance "
                    f"{report['max_distance']:.4f} x the diagonal ({seconds:.2f} s)")
+
+
+#: the families of :mod:`cagekit.datasets.synthetic` (its ``FAMILIES``), listed here so that
+#: ``--help`` imports nothing
+_SYNTH_FAMILIES = ("chairs", "tables", "vases")
+
+
+@main.command(short_help="Write procedural chairs, tables or vases to a folder.")
+@click.argument("family", type=click.Choice(_SYNTH_FAMILIES), metavar="FAMILY")
+@click.option("-n", "--count", "count", default=1, show_default=True,
+              type=click.IntRange(min=1), help="Number of shapes.")
+@click.option("-o", "--output", "out", required=True, type=click.Path(file_okay=False),
+              help="Folder to write them to (created if missing).")
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
+              help="Seed of the first shape; shape i is made with seed + i.")
+@click.option("--format", "fmt", type=click.Choice(["obj", "ply", "off"]), default="obj",
+              show_default=True, help="Mesh file format.")
+@click.option("--resolution", default=1.0, show_default=True,
+              type=click.FloatRange(min=0.1, max=10.0),
+              help="Scales the vertex count by about its square (about 4,500 at 1).")
+@_json_option
+@_debug_option
+@click.pass_context
+def synth(ctx, family, count, out, seed, fmt, resolution, as_json):
+    """Write N (-n) procedural shapes of FAMILY (chairs, tables or vases) into a folder.
+
+    Files are named OUT/<chair|table|vase>_<i>.<format> (i = 0000, 0001...); shape i
+    is made from seed --seed + i (cagekit.datasets.synthetic), y up, standing on y = 0,
+    in metres. An existing file of that name is an error (status 2) and nothing is
+    written.
+
+    \b
+    Example:
+      cagekit synth chairs -n 10 -o chairs/ --seed 100
+    """
+    from cagekit.datasets.synthetic import FAMILIES
+    from cagekit.io import save_mesh
+
+    _start(ctx)
+    if os.path.exists(out) and not os.path.isdir(out):
+        raise InputError("exists and is not a folder; give a folder for the shapes", out)
+    singular = family[:-1]
+    paths = [os.path.join(out, f"{singular}_{i:04d}.{fmt}") for i in range(count)]
+    for path in paths:
+        if os.path.lexists(path):
+            raise InputError("already exists; remove it or write to another folder", path)
+    os.makedirs(out, exist_ok=True)
+    make = FAMILIES[family]
+    vertices = []
+    bar = None
+    if _progress_enabled() and count > 1:
+        from tqdm import tqdm
+
+        columns, lines = _terminal_size()
+        bar = tqdm(total=count, desc=family, unit="shape", file=sys.stderr, leave=False,
+                   ncols=columns, nrows=lines)
+    try:
+        for i, path in enumerate(paths):
+            V, F = make(seed=seed + i, resolution=resolution)
+            save_mesh(path, V, F)
+            vertices.append(len(V))
+            if bar is not None:
+                bar.update(1)
+    finally:
+        if bar is not None:
+            bar.close()
+    if as_json:
+        _emit_json({"family": family, "n": count, "seed": seed, "format": fmt,
+                    "resolution": resolution, "output": out, "files": paths,
+                    "vertices": vertices})
+    else:
+        click.echo(f"wrote {count} {family if count > 1 else singular} to {out} "
+                   f"({os.path.basename(paths[0])}"
+                   + (f" ... {os.path.basename(paths[-1])}" if count > 1 else "")
+                   + f"; {min(vertices)}-{max(vertices)} vertices)")
+
+
+def _parse_weights(ctx, param, values):
+    """``NAME=VALUE`` pairs of --weight into a dict."""
+    weights = {}
+    for text in values:
+        name, sep, value = text.partition("=")
+        try:
+            weights[name.strip()] = float(value)
+        except ValueError:
+            sep = ""
+        if not sep:
+            raise click.BadParameter(f"expected NAME=VALUE (for example cage=0.5), got {text!r}")
+    return weights
+
+
+def _deform_figures(source, target, result):
+    """CD and dCotLap of a result (dCotLap only for a source with faces)."""
+    from cagekit.geometry import normalize
+    from cagekit.metrics import chamfer, evaluate
+
+    if len(source[1]):
+        return evaluate(source, target, (result.vertices, source[1]))
+    Vt_n, center, scale = normalize(target[0])
+    cd = chamfer((result.vertices - center) / scale, None, Vt_n, target[1])
+    return {"cd": cd, "dcotlap": None, "cd_x1e2": cd * 1e2, "dcotlap_x1e3": None}
+
+
+def _deformed_cage_path(path: str) -> str:
+    stem, ext = os.path.splitext(path)
+    return f"{stem}_deformed{ext}"
+
+
+def _load_landmark_pair(src_path, tgt_path):
+    """Matching landmark positions of the two files, in the source file's label order."""
+    import numpy as np
+
+    from cagekit.io import load_landmarks
+
+    src, tgt = load_landmarks(src_path), load_landmarks(tgt_path)
+    missing = [label for label in src if label not in tgt]
+    extra = [label for label in tgt if label not in src]
+    if missing or extra:
+        what = (f"lacks the source's labels {', '.join(missing[:5])}" if missing
+                else f"has labels the source lacks: {', '.join(extra[:5])}")
+        raise InputError(f"{what}; both landmark files must name the same landmarks",
+                         tgt_path)
+    return (np.array([src[k] for k in src]), np.array([tgt[k] for k in src]))
+
+
+@main.command(short_help="Deform SOURCE to take TARGET's shape by moving its cage.")
+@click.argument("source", type=click.Path(dir_okay=False))
+@click.argument("target", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", "out", required=True, type=click.Path(dir_okay=False),
+              help="Deformed source to write (in TARGET's frame and units).")
+@click.option("--method", type=click.Choice(["cage", "scale", "nricp"]), default="cage",
+              show_default=True,
+              help="cage: optimise the cage; scale: map the bounding boxes; nricp: "
+                   "trimesh's nricp_amberg (baselines).")
+@click.option("--cage", "cage_path", type=click.Path(dir_okay=False), default=None,
+              help="SOURCE's cage (closed, around it); fitted with fit-cage when left out.")
+@click.option("--faces", default=200, show_default=True, type=click.IntRange(min=4),
+              help="Face budget of the fitted cage (without --cage).")
+@click.option("--save-cage", type=click.Path(dir_okay=False), default=None,
+              help="Write the source cage here and the deformed cage beside it "
+                   "(name + '_deformed').")
+@click.option("--symmetry", type=click.Choice(["x", "y", "z", "none"]), default="none",
+              show_default=True, help="Axis normal to SOURCE's plane of symmetry.")
+@click.option("--landmarks", nargs=2, type=click.Path(dir_okay=False), default=None,
+              metavar="SRC TGT",
+              help="Landmark files (.picked, .json, .csv) of SOURCE and TARGET with the "
+                   "same labels; they replace Chamfer as the alignment term.")
+@click.option("--weight", "weights", multiple=True, callback=_parse_weights,
+              metavar="TERM=VALUE",
+              help="Energy weight (repeatable): chamfer, landmarks, p2f, normal, "
+                   "symmetry, cage.")
+@click.option("--reference", type=click.Choice(["aligned", "source"]), default="aligned",
+              show_default=True,
+              help="Shape and cage terms compare with the source (paper) or with the "
+                   "box-aligned source (stretch is free).")
+@click.option("--coords", type=click.Choice(list(COORDINATE_METHODS)), default="mvc",
+              show_default=True, help="Cage coordinates.")
+@click.option("--preview", type=click.Path(dir_okay=False), default=None,
+              help="Draw source, target and result side by side (cages as wireframes) "
+                   "into this PNG.")
+@_preview_up_option
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
+              help="Seed of the samples (and of the fitted cage).")
+@_json_option
+@_debug_option
+@click.pass_context
+def deform(ctx, source, target, out, method, cage_path, faces, save_cage, symmetry,
+           landmarks, weights, reference, coords, preview, up, seed, as_json):
+    """Deform SOURCE so that it takes TARGET's shape, keeping SOURCE's detail.
+
+    SOURCE is a mesh (or a point cloud, whose points move); TARGET a mesh or a point
+    cloud (noisy, partial or coarse). With --method cage (the default) SOURCE's cage is
+    moved to minimise Chamfer distance to TARGET plus the paper's shape-preservation and
+    cage terms (see cagekit/deformation.py); the result is written in TARGET's frame and
+    units. --json prints CD and dCotLap (as `cagekit eval`), each term's value, the
+    iterations and seconds.
+
+    \b
+    Example:
+      cagekit deform chair.obj tall_chair.obj -o out.obj --symmetry x --preview out.png
+    """
+    from cagekit import io
+    from cagekit.cage import check_cage
+    from cagekit.deformation import deform as run
+
+    _start(ctx)
+    inputs = (source, target, cage_path, *(landmarks or ()))
+    _check_output(out, inputs)
+    outputs = [out]
+    if method != "cage" and (cage_path or save_cage or landmarks or weights
+                             or symmetry != "none"):
+        raise click.UsageError("--cage, --save-cage, --landmarks, --weight and --symmetry "
+                               "apply to --method cage only")
+    if save_cage is not None:
+        mesh_exts = set(io.SUPPORTED_MESH_EXTENSIONS) - {".gltf"}
+        for path in (save_cage, _deformed_cage_path(save_cage)):
+            _check_output(path, inputs, extensions=mesh_exts)
+            outputs.append(path)
+    if preview is not None:
+        _check_output(preview, inputs, extensions={".png"})
+        outputs.append(preview)
+    if len({os.path.realpath(p) for p in outputs}) < len(outputs):
+        raise InputError("two outputs would be the same file", out)
+
+    src = io.load_shape(source)
+    write = _shape_writer(out, has_faces=len(src[1]) > 0)
+    tgt = io.load_shape(target)
+    cage = None
+    if cage_path is not None:
+        cage_v, cage_f = io.load_mesh(cage_path)
+        cage = (cage_v, check_cage(cage_v, cage_f, name=cage_path))
+    pairs = _load_landmark_pair(*landmarks) if landmarks else None
+    try:
+        result = run(src, tgt, cage, method=method,
+                     symmetry=None if symmetry == "none" else symmetry, landmarks=pairs,
+                     weights=weights or None, faces=faces, reference=reference,
+                     coords=coords, seed=seed)
+    except InputError as exc:
+        if exc.path is None:
+            raise InputError(exc.problem, f"{source}, {target}") from None
+        raise
+    write(out, result.vertices, result.faces)
+    if save_cage is not None:
+        io.save_mesh(save_cage, result.cage_v, result.cage_f)
+        io.save_mesh(_deformed_cage_path(save_cage), result.deformed_cage_v, result.cage_f)
+    figures = _deform_figures(src, tgt, result)
+    dcot = figures["dcotlap_x1e3"]
+    caption = (f"{method}: CD x1e2 = {figures['cd_x1e2']:.3f}"
+               + ("" if dcot is None else f", dCotLap x1e3 = {dcot:.4f}")
+               + f" ({result.seconds:.2f} s)")
+    if preview is not None:
+        from cagekit.render import render_meshes
+
+        has_cage = result.cage_v is not None
+        render_meshes(
+            [src, tgt, (result.vertices, result.faces)], preview,
+            cages=[(result.cage_v, result.cage_f) if has_cage else None, None,
+                   (result.deformed_cage_v, result.cage_f) if has_cage else None],
+            titles=[f"source: {os.path.basename(source)}",
+                    f"target: {os.path.basename(target)}", f"result ({method})"],
+            caption=caption, up=up)
+    if as_json:
+        _emit_json({"source": source, "target": target, "output": out, "method": method,
+                    **{k: figures[k] for k in ("cd", "dcotlap", "cd_x1e2", "dcotlap_x1e3")},
+                    "losses": result.losses, "weights": result.weights,
+                    "energy": result.energy, "iterations": result.iterations,
+                    "cage_faces": None if result.cage_f is None else len(result.cage_f),
+                    "seconds": result.seconds})
+    else:
+        click.echo(f"wrote {out}: {caption}")
 
 
 if __name__ == "__main__":

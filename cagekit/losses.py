@@ -1,0 +1,511 @@
+"""The per-pair energy's terms (section 3.3 of "Neural Cages"), each with its exact gradient.
+
+Every function takes point positions (usually the deformed points ``X = W @ C``, linear in
+the cage ``C``) and returns ``(value, gradient)`` with the gradient of the value with
+respect to the positions it was given; the chain rule through the binding is then one
+product, ``dE/dC = W.T @ dE/dX``. All arrays are float64.
+
+=====================  ==================================================================
+term                   value
+=====================  ==================================================================
+:func:`chamfer_loss`   ``mean_a min_b |a - b|^2 + mean_b min_a |a - b|^2`` (alignment)
+:func:`landmark_loss`  ``mean_l |p_l - t_l|^2`` (alignment with known correspondences)
+:func:`symmetry_loss`  Chamfer between a point set and its mirror image
+:func:`cage_symmetry_loss`  change of each cage vertex's offset from its mirror partner
+:func:`p2f_loss`       ``mean_i (d_i(X) - d_i^0)^2``, ``d_i`` the signed distance of
+                       vertex ``i`` to the PCA plane of its neighbourhood
+:func:`normal_loss`    ``mean_i (1 - |n_i(X) . n_i^0|)``, ``n_i`` the PCA normal
+                       (both: :func:`shape_losses`, one eigen-decomposition)
+:func:`laplacian_loss` ``mean over k x 3 entries of (L (C - C_ref))^2``
+=====================  ==================================================================
+
+Decisions
+---------
+- Chamfer is the DESIGN's: squared distances, the two directions summed, not halved. Its
+  gradient is the gradient for the current nearest neighbours (the function is piecewise
+  quadratic; nearest-neighbour switches are where it is not differentiable), which is what
+  a finite difference sees away from ties.
+- PCA normals are eigenvectors of the neighbourhood covariance; their derivative is the
+  first-order eigenvector perturbation ``dn = sum_{k>0} v_k (v_k . dM n) / (l_0 - l_k)``.
+  Where the smallest eigenvalue is (nearly) repeated (a neighbourhood on a line, or a
+  point) the normal is not a function of the points; those pairs of eigenvalues closer than
+  ``1e-12`` times the covariance's trace contribute no gradient (finite, not exact).
+- A normal's sign is arbitrary; both shape terms compare it with the rest normal through
+  ``|n . n0|`` (:func:`normal_loss`) or after flipping it to agree with ``n0``
+  (:func:`p2f_loss`), so the sign never matters.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+import scipy.sparse
+from scipy.spatial import cKDTree
+
+from cagekit.errors import InputError
+
+__all__ = [
+    "ShapeReference",
+    "cage_symmetry_loss",
+    "chamfer_loss",
+    "landmark_loss",
+    "laplacian_loss",
+    "mirror",
+    "mirror_partners",
+    "normal_loss",
+    "p2f_loss",
+    "shape_losses",
+    "shape_reference",
+    "symmetry_loss",
+]
+
+AXES = {"x": 0, "y": 1, "z": 2}
+
+
+def _finite(value: float, what: str) -> float:
+    if not np.isfinite(value):
+        raise FloatingPointError(f"{what} is not finite (NaN or inf positions?)")
+    return float(value)
+
+
+# ---------------------------------------------------------------------------- alignment
+
+
+def _check_points(P, what):
+    """FloatingPointError for NaN, inf, or coordinates whose squares would overflow."""
+    if not np.isfinite(P).all():
+        raise FloatingPointError(f"{what} has NaN or inf coordinates")
+    if len(P) and np.abs(P).max() > 1e150:
+        raise FloatingPointError(f"{what} has coordinates too large to square (> 1e150)")
+
+
+def _chamfer_pair(P, Q, tree_Q=None):
+    """Chamfer value and the gradients with respect to both point sets."""
+    _check_points(P, "the moving point set")
+    _check_points(Q, "the fixed point set")
+    tree_Q = cKDTree(Q) if tree_Q is None else tree_Q
+    _, to_q = tree_Q.query(P)
+    _, to_p = cKDTree(P).query(Q)
+    e_pq = P - Q[to_q]  # (s, 3): each P point minus its nearest Q point
+    e_qp = Q - P[to_p]  # (t, 3)
+    s, t = len(P), len(Q)
+    value = np.einsum("ij,ij->", e_pq, e_pq) / s + np.einsum("ij,ij->", e_qp, e_qp) / t
+    grad_P = 2.0 * e_pq / s
+    grad_Q = 2.0 * e_qp / t
+    for axis in range(3):
+        grad_P[:, axis] -= np.bincount(to_p, weights=2.0 * e_qp[:, axis] / t, minlength=s)
+        grad_Q[:, axis] -= np.bincount(to_q, weights=2.0 * e_pq[:, axis] / s, minlength=t)
+    return _finite(value, "Chamfer distance"), grad_P, grad_Q
+
+
+def chamfer_loss(P, Q, tree_Q: cKDTree | None = None) -> tuple[float, np.ndarray]:
+    """Chamfer distance between moving points ``P`` and fixed points ``Q``, with ``dL/dP``.
+
+    Parameters
+    ----------
+    P : (s, 3) float64
+        Moving points (deformed source samples).
+    Q : (t, 3) float64
+        Fixed points (target samples).
+    tree_Q : scipy.spatial.cKDTree, optional
+        A tree built on ``Q``, reused across calls.
+
+    Returns
+    -------
+    value : float
+        ``mean_i min_j |P_i - Q_j|^2 + mean_j min_i |P_i - Q_j|^2``.
+    grad : (s, 3) float64
+        Gradient of ``value`` with respect to ``P`` (nearest neighbours held fixed).
+
+    Examples
+    --------
+    >>> value, grad = chamfer_loss(np.array([[0.0, 0, 0]]), np.array([[0.0, 0, 2]]))
+    >>> value, grad.tolist()
+    (8.0, [[0.0, 0.0, -8.0]])
+    """
+    value, grad_P, _ = _chamfer_pair(P, Q, tree_Q)
+    return value, grad_P
+
+
+def landmark_loss(P, T) -> tuple[float, np.ndarray]:
+    """Mean squared distance between corresponding points, with ``dL/dP``.
+
+    Parameters
+    ----------
+    P : (l, 3) float64
+        Moving points (deformed source landmarks).
+    T : (l, 3) float64
+        Their fixed targets, row for row.
+
+    Returns
+    -------
+    value : float
+        ``mean_l |P_l - T_l|^2``.
+    grad : (l, 3) float64
+
+    Examples
+    --------
+    >>> landmark_loss(np.zeros((2, 3)), np.array([[1.0, 0, 0], [0, 0, 0]]))[0]
+    0.5
+    """
+    diff = P - T
+    value = np.einsum("ij,ij->", diff, diff) / len(P)
+    return _finite(value, "landmark loss"), 2.0 * diff / len(P)
+
+
+def mirror(P, axis: str) -> np.ndarray:
+    """Reflect points across the plane through the origin normal to ``axis``.
+
+    Parameters
+    ----------
+    P : (n, 3) float64
+    axis : {"x", "y", "z"}
+
+    Returns
+    -------
+    (n, 3) float64
+
+    Examples
+    --------
+    >>> mirror(np.array([[1.0, 2.0, 3.0]]), "x").tolist()
+    [[-1.0, 2.0, 3.0]]
+    """
+    if axis not in AXES:
+        raise InputError(f"symmetry axis must be one of x, y, z, got {axis!r}")
+    out = np.array(P, dtype=np.float64, copy=True)
+    out[:, AXES[axis]] *= -1.0
+    return out
+
+
+def symmetry_loss(P, axis: str) -> tuple[float, np.ndarray]:
+    """Chamfer distance between a point set and its mirror image, with ``dL/dP``.
+
+    Both sets move with ``P``: the gradient sums the direct part and the part through the
+    mirror image. It is 0 exactly when the set is symmetric about the plane through the
+    origin normal to ``axis`` (shapes are centred by normalisation).
+
+    Parameters
+    ----------
+    P : (s, 3) float64
+    axis : {"x", "y", "z"}
+
+    Returns
+    -------
+    value : float
+    grad : (s, 3) float64
+
+    Examples
+    --------
+    >>> symmetry_loss(np.array([[-1.0, 0, 0], [1.0, 0, 0]]), "x")[0]
+    0.0
+    """
+    value, grad_P, grad_Q = _chamfer_pair(P, mirror(P, axis))
+    return value, grad_P + mirror(grad_Q, axis)
+
+
+def mirror_partners(C_ref, axis: str) -> tuple[np.ndarray, np.ndarray]:
+    """Each vertex's mirror partner in a rest cage, and its rest offset from the partner.
+
+    Parameters
+    ----------
+    C_ref : (k, 3) float64
+        Rest cage vertices, centred on the plane of symmetry.
+    axis : {"x", "y", "z"}
+
+    Returns
+    -------
+    partner : (k,) int64
+        Index of the vertex nearest to each vertex's mirror image.
+    offset : (k, 3) float64
+        ``C_ref - mirror(C_ref[partner])``: 0 for an exactly symmetric cage.
+
+    Examples
+    --------
+    >>> C = np.array([[-1.0, 0, 0], [1.0, 0, 0], [0, 1.0, 0]])
+    >>> partner, offset = mirror_partners(C, "x")
+    >>> partner.tolist(), float(abs(offset).max())
+    ([1, 0, 2], 0.0)
+    """
+    M = mirror(C_ref, axis)
+    _, partner = cKDTree(M).query(C_ref)
+    partner = np.asarray(partner, dtype=np.int64)
+    return partner, C_ref - M[partner]
+
+
+def cage_symmetry_loss(C, partner, offset, axis: str) -> tuple[float, np.ndarray]:
+    """Change of each cage vertex's offset from its rest mirror partner, with ``dL/dC``.
+
+    ``mean_i |C_i - mirror(C_partner(i)) - offset_i|^2``. For a symmetric rest cage
+    (``offset = 0``) this is half the Chamfer distance between the cage and its mirror
+    image with the rest nearest neighbours; for a cage that is not symmetric (fitted
+    cages rarely are) it asks for a symmetric *motion* instead of pulling the cage
+    towards symmetry, which would bend a symmetric shape inside it.
+
+    Parameters
+    ----------
+    C : (k, 3) float64
+    partner, offset : from :func:`mirror_partners` on the rest cage
+    axis : {"x", "y", "z"}
+
+    Returns
+    -------
+    value : float
+    grad : (k, 3) float64
+
+    Examples
+    --------
+    >>> C = np.array([[-1.0, 0, 0], [1.0, 0, 0], [0, 1.0, 0]])
+    >>> partner, offset = mirror_partners(C, "x")
+    >>> cage_symmetry_loss(C * [1, 2, 1], partner, offset, "x")[0]
+    0.0
+    """
+    e = C - mirror(C[partner], axis) - offset
+    k = len(C)
+    value = np.einsum("ij,ij->", e, e) / k
+    grad = 2.0 * e / k
+    back = mirror(-2.0 * e / k, axis)
+    for a in range(3):
+        grad[:, a] += np.bincount(partner, weights=back[:, a], minlength=k)
+    return _finite(value, "cage symmetry loss"), grad
+
+
+def laplacian_loss(C, L: scipy.sparse.spmatrix, C_ref) -> tuple[float, np.ndarray]:
+    """Change of a cage's Laplacian coordinates, with ``dL/dC``.
+
+    Parameters
+    ----------
+    C : (k, 3) float64
+        Cage vertices.
+    L : (k, k) sparse
+        Laplacian of the reference cage (cotangent, :func:`cagekit.cotangent_laplacian`).
+    C_ref : (k, 3) float64
+        Reference cage vertices.
+
+    Returns
+    -------
+    value : float
+        ``mean over k x 3 entries of (L (C - C_ref))^2``, 0 for any translation of
+        ``C_ref``.
+    grad : (k, 3) float64
+
+    Examples
+    --------
+    >>> L = scipy.sparse.csr_matrix([[-1.0, 1.0], [1.0, -1.0]])
+    >>> laplacian_loss(np.ones((2, 3)), L, np.zeros((2, 3)))[0]
+    0.0
+    """
+    R = L @ (C - C_ref)
+    value = np.einsum("ij,ij->", R, R) / R.size
+    return _finite(value, "cage Laplacian loss"), 2.0 * (L.T @ R) / R.size
+
+
+# ------------------------------------------------------------------------ shape terms
+
+
+class ShapeReference(NamedTuple):
+    """Neighbourhoods and rest-state planes for :func:`p2f_loss` and :func:`normal_loss`.
+
+    Attributes
+    ----------
+    own : (r, ) int64
+        Index (into the points passed to the losses) of each plane's own vertex.
+    index : (r, m) int64
+        Members of each neighbourhood (indices into the points), padded.
+    mask : (r, m) bool
+        True for real members.
+    normals : (r, 3) float64
+        Rest PCA normals ``n^0``.
+    distances : (r,) float64
+        Rest signed distances ``d^0`` of each own vertex to its plane.
+    """
+
+    own: np.ndarray
+    index: np.ndarray
+    mask: np.ndarray
+    normals: np.ndarray
+    distances: np.ndarray
+
+
+def _planes(X, index, mask):
+    """Eigen-decomposition of every neighbourhood's covariance."""
+    w = mask.astype(np.float64)
+    m = w.sum(axis=1)
+    P = X[index]
+    centroid = np.einsum("rj,rjk->rk", w, P) / m[:, None]
+    D = (P - centroid[:, None, :]) * w[:, :, None]
+    cov = np.einsum("rji,rjk->rik", D, D) / m[:, None, None]
+    lam, vec = np.linalg.eigh(cov)
+    return lam, vec, centroid, D, m
+
+
+def shape_reference(X, own, index, mask) -> ShapeReference:
+    """Rest normals and point-to-plane distances of the given neighbourhoods.
+
+    Parameters
+    ----------
+    X : (n, 3) float64
+        Rest positions.
+    own : (r,) int
+        The vertex each neighbourhood belongs to.
+    index, mask : (r, m) int and bool
+        Neighbourhood members (for example rows of :func:`cagekit.geometry.
+        vertex_neighborhoods`); at least one real member per row.
+
+    Returns
+    -------
+    ShapeReference
+
+    Examples
+    --------
+    >>> X = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]])
+    >>> ref = shape_reference(X, [0], [[0, 1, 2, 3]], [[True] * 4])
+    >>> float(abs(ref.normals[0, 2])), ref.distances.tolist()
+    (1.0, [0.0])
+    """
+    own = np.asarray(own, dtype=np.int64)
+    index = np.asarray(index, dtype=np.int64)
+    mask = np.asarray(mask, dtype=bool)
+    _, vec, centroid, _, _ = _planes(X, index, mask)
+    normals = vec[:, :, 0]
+    distances = np.einsum("rk,rk->r", X[own] - centroid, normals)
+    return ShapeReference(own, index, mask, normals, distances)
+
+
+def _normal_backward(g, lam, vec, D, m, mask):
+    """Gradient with respect to the neighbourhood members of ``f(n)`` given ``g = df/dn``.
+
+    ``dn = sum_{k=1,2} v_k (v_k . dM n) / (l_0 - l_k)``, so ``df/dM = sym(-sum_k a_k v_k n^T)``
+    with ``a_k = (g . v_k) / (l_k - l_0)``; and ``dM = (2/m) sum_j sym(dD_j D_j^T)`` with
+    ``sum_j D_j = 0`` (the centroid's own variation drops out).
+    """
+    n = vec[:, :, 0]
+    gap_floor = 1e-12 * np.maximum(lam.sum(axis=1), np.finfo(float).tiny)
+    G = np.zeros((len(g), 3, 3))
+    for k in (1, 2):
+        gap = lam[:, k] - lam[:, 0]
+        ok = gap > gap_floor
+        a = np.where(ok, np.einsum("ri,ri->r", g, vec[:, :, k]) / np.where(ok, gap, 1.0), 0.0)
+        outer = np.einsum("r,ri,rj->rij", a, vec[:, :, k], n)
+        G -= 0.5 * (outer + outer.transpose(0, 2, 1))
+    return (2.0 / m)[:, None, None] * np.einsum("rik,rjk->rji", G, D) * mask[:, :, None]
+
+
+def _scatter(n, index, values):
+    """Sum ``values[r, j]`` into row ``index[r, j]`` of an ``(n, 3)`` array."""
+    flat = index.ravel()
+    vals = values.reshape(-1, 3)
+    return np.stack([np.bincount(flat, weights=vals[:, a], minlength=n) for a in range(3)],
+                    axis=1)
+
+
+def shape_losses(X, ref: ShapeReference, p2f_weight: float = 1.0,
+                 normal_weight: float = 1.0) -> tuple[dict, np.ndarray]:
+    """:func:`p2f_loss` and :func:`normal_loss` together, from one eigen-decomposition.
+
+    Parameters
+    ----------
+    X : (n, 3) float64
+        Deformed positions.
+    ref : ShapeReference
+    p2f_weight, normal_weight : float
+        Weights of the two terms in the returned gradient; a zero weight skips the term.
+
+    Returns
+    -------
+    values : dict
+        ``{"p2f": float, "normal": float}`` for the terms with non-zero weight.
+    grad : (n, 3) float64
+        Gradient of ``p2f_weight * L_p2f + normal_weight * L_normal``.
+
+    Examples
+    --------
+    >>> X = np.array([[0.0, 0, 1], [1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0]])
+    >>> ref = shape_reference(X, [0], [[0, 1, 2, 3, 4]], [[True] * 5])
+    >>> values, grad = shape_losses(X, ref)
+    >>> sorted(values), float(abs(grad).max())
+    (['normal', 'p2f'], 0.0)
+    """
+    lam, vec, centroid, D, m = _planes(X, ref.index, ref.mask)
+    n_raw = vec[:, :, 0]
+    cos = np.einsum("ri,ri->r", n_raw, ref.normals)
+    flip = np.where(cos < 0, -1.0, 1.0)  # orients n along n0; a constant for derivatives
+    r = len(cos)
+    values = {}
+    g_n = np.zeros_like(n_raw)  # d(weighted sum)/d(n_raw)
+    members = np.zeros_like(D)  # direct (centroid) part of d(weighted sum)/d(members)
+    grad = np.zeros_like(X)
+    if normal_weight:
+        values["normal"] = _finite(np.mean(1.0 - np.abs(cos)), "normal loss")
+        g_n -= (normal_weight * flip / r)[:, None] * ref.normals
+    if p2f_weight:
+        n = n_raw * flip[:, None]
+        offset = X[ref.own] - centroid
+        residual = np.einsum("ri,ri->r", offset, n) - ref.distances
+        values["p2f"] = _finite(np.mean(residual**2), "point-to-plane loss")
+        coef = p2f_weight * 2.0 * residual / r  # d(weighted value) / d(d_i)
+        g_n += (coef * flip)[:, None] * offset
+        members -= (coef / m)[:, None, None] * n[:, None, :] * ref.mask[:, :, None]
+        grad += _scatter(len(X), ref.own[:, None], (coef[:, None] * n)[:, None, :])
+    if values:
+        members += _normal_backward(g_n, lam, vec, D, m, ref.mask)
+        grad += _scatter(len(X), ref.index, members)
+    return values, grad
+
+
+def normal_loss(X, ref: ShapeReference) -> tuple[float, np.ndarray]:
+    """Change of PCA normals, ``mean_i (1 - |n_i(X) . n_i^0|)``, with ``dL/dX``.
+
+    Parameters
+    ----------
+    X : (n, 3) float64
+        Deformed positions (same indexing as the reference).
+    ref : ShapeReference
+        From :func:`shape_reference` on the rest positions.
+
+    Returns
+    -------
+    value : float
+        In ``[0, 1]``; 0 when every normal is unchanged (up to sign).
+    grad : (n, 3) float64
+
+    Examples
+    --------
+    >>> X = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]])
+    >>> ref = shape_reference(X, [0], [[0, 1, 2, 3]], [[True] * 4])
+    >>> round(normal_loss(2.0 * X, ref)[0], 12)
+    0.0
+    """
+    values, grad = shape_losses(X, ref, p2f_weight=0.0)
+    return values["normal"], grad
+
+
+def p2f_loss(X, ref: ShapeReference) -> tuple[float, np.ndarray]:
+    """Change of point-to-plane distances, ``mean_i (d_i(X) - d_i^0)^2``, with ``dL/dX``.
+
+    ``d_i = n_i . (x_i - c_i)``: the signed distance of vertex ``i`` to the PCA plane of
+    its neighbourhood (centroid ``c_i``, normal ``n_i`` flipped to agree with ``n_i^0``).
+    It measures how much the local relief (a bump, a ridge, a corner) is flattened or
+    exaggerated.
+
+    Parameters
+    ----------
+    X : (n, 3) float64
+        Deformed positions.
+    ref : ShapeReference
+        From :func:`shape_reference` on the rest positions.
+
+    Returns
+    -------
+    value : float
+    grad : (n, 3) float64
+
+    Examples
+    --------
+    >>> X = np.array([[0.0, 0, 1], [1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0]])
+    >>> ref = shape_reference(X, [0], [[0, 1, 2, 3, 4]], [[True] * 5])
+    >>> round(p2f_loss(X * [1, 1, 1.5], ref)[0], 12)  # the bump grows: d 0.8 -> 1.2
+    0.16
+    """
+    values, grad = shape_losses(X, ref, normal_weight=0.0)
+    return values["p2f"], grad

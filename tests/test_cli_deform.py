@@ -1,0 +1,103 @@
+"""End-to-end tests of ``cagekit deform`` (subprocess), its outputs and its bad-input errors."""
+
+import json
+
+import numpy as np
+import pytest
+from test_cli import assert_bad_input, cagekit, load_obj
+
+from cagekit.io import save_landmarks, save_mesh
+
+
+@pytest.fixture(scope="module")
+def pair(tmp_path_factory):
+    """A small symmetric blob and a non-affine variation of it, written as OBJ files."""
+    from test_deform import bumpy_blob
+
+    folder = tmp_path_factory.mktemp("pair")
+    V, F = bumpy_blob(subdivisions=2)
+    Vt = V * 3.0 + 10.0
+    Vt[V[:, 1] > 0] *= [1.2, 1.0, 1.0]
+    source, target = folder / "source.obj", folder / "target.obj"
+    save_mesh(source, V, F)
+    save_mesh(target, Vt, F)
+    return folder, source, target
+
+
+def test_deform_writes_result_cages_preview_and_json(pair):
+    folder, source, target = pair
+    out, cage, preview = folder / "out.obj", folder / "cage.obj", folder / "preview.png"
+    result = cagekit("deform", source, target, "-o", out, "--save-cage", cage,
+                     "--preview", preview, "--symmetry", "x", "--faces", "80", "--json")
+    assert result.returncode == 0, result.stderr
+    report = json.loads(result.stdout)
+    assert report["method"] == "cage" and report["cage_faces"] <= 80
+    assert {"chamfer", "p2f", "normal", "symmetry", "cage"} == set(report["losses"])
+    assert report["energy"] <= report["iterations"] * 1e9  # a number, not null
+    assert report["cd"] > 0 and report["dcotlap"] >= 0
+    assert preview.stat().st_size > 10_000
+    # the written cages reproduce the output through `cagekit apply`
+    deformed_cage = folder / "cage_deformed.obj"
+    again = folder / "again.obj"
+    applied = cagekit("apply", source, cage, deformed_cage, "-o", again)
+    assert applied.returncode == 0, applied.stderr
+    np.testing.assert_allclose(load_obj(again)[0], load_obj(out)[0], atol=1e-9)
+    # `cagekit eval` measures the same figures
+    evaluated = json.loads(cagekit("eval", source, target, out, "--json").stdout)
+    assert evaluated["cd"] == pytest.approx(report["cd"])
+    assert evaluated["dcotlap"] == pytest.approx(report["dcotlap"])
+
+
+@pytest.mark.parametrize("method", ["scale", "nricp"])
+def test_deform_baselines(pair, method):
+    folder, source, target = pair
+    out = folder / f"{method}.obj"
+    result = cagekit("deform", source, target, "-o", out, "--method", method, "--json")
+    assert result.returncode == 0, result.stderr
+    report = json.loads(result.stdout)
+    assert report["method"] == method and report["cage_faces"] is None
+    assert load_obj(out)[0].shape == load_obj(source)[0].shape
+
+
+def test_deform_with_landmarks_and_a_given_cage(pair, tmp_path):
+    folder, source, target = pair
+    V, _ = load_obj(source)
+    Vt, _ = load_obj(target)
+    save_landmarks(tmp_path / "src.json", {f"p{i}": V[i] for i in (0, 7, 50, 99)})
+    save_landmarks(tmp_path / "tgt.json", {f"p{i}": Vt[i] for i in (0, 7, 50, 99)})
+    cage_file = tmp_path / "cage.obj"
+    assert cagekit("fit-cage", source, "-o", cage_file, "--faces", "80").returncode == 0
+    out = tmp_path / "out.obj"
+    result = cagekit("deform", source, target, "-o", out, "--cage", cage_file,
+                     "--landmarks", tmp_path / "src.json", tmp_path / "tgt.json",
+                     "--weight", "chamfer=1", "--json")
+    assert result.returncode == 0, result.stderr
+    report = json.loads(result.stdout)
+    assert report["weights"]["chamfer"] == 1.0 and "landmarks" in report["losses"]
+
+
+def test_deform_bad_inputs_exit_2_with_one_line(pair, tmp_path):
+    folder, source, target = pair
+    before = source.read_bytes(), target.read_bytes()
+    out = tmp_path / "out.obj"
+    assert_bad_input(cagekit("deform", tmp_path / "missing.obj", target, "-o", out),
+                     "missing.obj")
+    broken = tmp_path / "broken.obj"
+    broken.write_text("v 0 0 0\nv nan 1 0\nv 0 1 0\nf 1 2 3\n")
+    assert_bad_input(cagekit("deform", source, broken, "-o", out), "broken.obj")
+    assert_bad_input(cagekit("deform", source, target, "-o", target), str(target))
+    assert_bad_input(cagekit("deform", source, target, "-o", out, "--cage", broken),
+                     "broken.obj")
+    save_landmarks(tmp_path / "a.json", {"nose": [0, 0, 0], "tail": [1, 0, 0]})
+    save_landmarks(tmp_path / "b.json", {"nose": [0, 0, 0]})
+    assert_bad_input(cagekit("deform", source, target, "-o", out, "--landmarks",
+                             tmp_path / "a.json", tmp_path / "b.json"), "b.json")
+    assert_bad_input(cagekit("deform", source, target, "-o", out, "--weight", "smooth=1"),
+                     str(source))
+    assert_bad_input(cagekit("deform", source, target, "-o", out, "--weight", "cage"))
+    assert_bad_input(cagekit("deform", source, target, "-o", out, "--method", "scale",
+                             "--symmetry", "x"))
+    assert_bad_input(cagekit("deform", source, target, "-o", out, "--preview",
+                             tmp_path / "p.jpg"), "p.jpg")
+    assert not out.exists()
+    assert (source.read_bytes(), target.read_bytes()) == before  # inputs untouched

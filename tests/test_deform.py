@@ -1,0 +1,216 @@
+"""Tests of cagekit.deform: the per-pair cage energy, its solver and the baselines."""
+
+import numpy as np
+import pytest
+import trimesh
+
+import cagekit
+from cagekit.deformation import DEFAULT_WEIGHTS, CageEnergy, box_scale
+from cagekit.errors import InputError
+from cagekit.losses import mirror
+from cagekit.metrics import chamfer_distance, dcotlap, evaluate
+
+
+def bumpy_blob(stretch=(1.0, 0.6, 0.45), subdivisions=3):
+    """An ellipsoid with bumps, mirror-symmetric about x = 0 (and z = 0), about 640 vertices."""
+    m = trimesh.creation.icosphere(subdivisions)
+    V = np.asarray(m.vertices, dtype=float)
+    bumps = 1.0 + 0.06 * np.cos(9 * V[:, 1]) * np.cos(7 * np.abs(V[:, 0]))
+    return V * bumps[:, None] * stretch, np.asarray(m.faces, dtype=np.int64)
+
+
+@pytest.fixture(scope="module")
+def blob():
+    return bumpy_blob()
+
+
+@pytest.fixture(scope="module")
+def blob_cage(blob):
+    return cagekit.fit_cage(*blob, faces=120)
+
+
+def symmetry_error(V, axis="x"):
+    V = V - 0.5 * (V.min(axis=0) + V.max(axis=0))
+    return chamfer_distance(V, mirror(V, axis))
+
+
+# ------------------------------------------------------------------------- the energy
+
+
+def test_energy_gradient_matches_finite_differences(blob, blob_cage):
+    """The full weighted energy's gradient, every term on, by central differences."""
+    V, F = blob
+    cage_v, cage_f = blob_cage
+    b = cagekit.bind(V, cage_v, cage_f)
+    rng = np.random.default_rng(0)
+    from cagekit.geometry import vertex_neighborhoods
+    from cagekit.losses import shape_reference
+
+    nb = vertex_neighborhoods(V, F)
+    ref = shape_reference(V, np.arange(len(V)), nb.index, nb.mask)
+    target = V * [1.2, 0.9, 1.0] + 0.01 * rng.standard_normal(V.shape)
+    weights = dict(DEFAULT_WEIGHTS, landmarks=0.7, symmetry=0.5)
+    energy = CageEnergy(b.weights, target, b.weights, ref, cage_f, cage_v, weights,
+                        symmetry="x", W_landmarks=b.weights[:5], landmarks=target[:5])
+    C = cage_v + 0.02 * rng.standard_normal(cage_v.shape)
+    value, grad, values = energy.evaluate(C)
+    assert set(values) == {"chamfer", "landmarks", "p2f", "normal", "symmetry", "cage"}
+    assert value == pytest.approx(sum(weights[k] * v for k, v in values.items()))
+    h = 1e-6
+    for _ in range(12):
+        i, a = rng.integers(len(C)), rng.integers(3)
+        Cp, Cm = C.copy(), C.copy()
+        Cp[i, a] += h
+        Cm[i, a] -= h
+        numeric = (energy.evaluate(Cp)[0] - energy.evaluate(Cm)[0]) / (2 * h)
+        assert numeric == pytest.approx(grad[i, a], abs=1e-6 * np.abs(grad).max())
+
+
+def test_optimiser_lowers_the_energy_and_the_chamfer_distance(blob, blob_cage):
+    target = (bumpy_blob((1.0, 0.6, 0.45))[0] * [1.0, 1.0, 1.0], blob[1])
+    # a non-affine target: the top half swells
+    Vt = target[0].copy()
+    Vt[Vt[:, 1] > 0] *= [1.25, 1.0, 1.25]
+    result = cagekit.deform(blob, (Vt, blob[1]), cage=blob_cage)
+    assert result.energy < 0.8 * result.initial_energy
+    assert result.iterations > 5
+    scale = cagekit.deform(blob, (Vt, blob[1]), method="scale")
+    cd_cage = evaluate(blob, (Vt, blob[1]), (result.vertices, blob[1]))["cd"]
+    cd_scale = evaluate(blob, (Vt, blob[1]), (scale.vertices, blob[1]))["cd"]
+    assert cd_cage < 0.7 * cd_scale
+
+
+@pytest.mark.parametrize("stretch, reference", [
+    ((2.0, 2.0, 2.0), "source"),    # a uniformly scaled copy: dCotLap of the exact answer 0
+    ((2.0, 2.0, 2.0), "aligned"),
+    ((1.4, 0.8, 1.0), "aligned"),   # a stretched copy: the stretch is free with "aligned"
+])
+def test_scaled_copy_is_recovered_with_near_zero_distortion(blob, blob_cage, stretch,
+                                                            reference):
+    V, F = blob
+    target = V * stretch + [5.0, -3.0, 1.0]  # another frame and units
+    result = cagekit.deform(blob, (target, F), cage=blob_cage, reference=reference)
+    size = np.ptp(target, axis=0).max()
+    assert np.abs(result.vertices - target).max() < 0.01 * size
+    Vs_n = cagekit.normalize(V)[0]
+    Vt_n, center, scale = cagekit.normalize(target)
+    d = dcotlap(Vs_n, F, (result.vertices - center) / scale)
+    exact = dcotlap(Vs_n, F, Vt_n)  # 0 for the uniform copy, the stretch's own cost
+    # 5e-6 is 0.005 in the paper's tables (x 1e3): sample noise of the Chamfer term
+    assert d - exact < 5e-6
+
+
+def test_source_reference_charges_for_stretch(blob, blob_cage):
+    """The default (paper's) reference follows a stretch most of the way, not all of it."""
+    V, F = blob
+    target = V * [1.4, 0.8, 1.0]
+    result = cagekit.deform(blob, (target, F), cage=blob_cage)
+    error = np.abs(result.vertices - target).max()
+    assert error < 0.05 * np.ptp(target, axis=0).max()
+    assert error < 0.25 * np.abs(V - target).max()
+
+
+def test_symmetric_inputs_stay_symmetric_with_the_symmetry_term(blob):
+    V, F = blob
+    Vt = V.copy()
+    Vt[Vt[:, 1] > 0] *= [1.3, 1.0, 1.0]  # symmetric about x = 0 still
+    assert symmetry_error(Vt) < 1e-4
+    without = cagekit.deform(blob, (Vt, F))
+    with_symmetry = cagekit.deform(blob, (Vt, F), symmetry="x")
+    assert "symmetry" in with_symmetry.losses and "symmetry" not in without.losses
+    assert symmetry_error(with_symmetry.vertices) < 1e-3 * np.ptp(Vt, axis=0).max() ** 2
+    assert symmetry_error(with_symmetry.vertices) <= symmetry_error(without.vertices)
+
+
+def test_deterministic_with_a_seed(blob, blob_cage):
+    Vt = blob[0] * [1.2, 1.0, 0.9]
+    a = cagekit.deform(blob, Vt, cage=blob_cage, seed=3)
+    b = cagekit.deform(blob, Vt, cage=blob_cage, seed=3)
+    np.testing.assert_array_equal(a.vertices, b.vertices)
+
+
+def test_result_fields_and_frames(blob, blob_cage):
+    V, F = blob
+    target = (V * 10.0 + 100.0, F)
+    result = cagekit.deform(blob, target, cage=blob_cage, max_evaluations=10)
+    assert isinstance(result, cagekit.DeformResult)
+    assert result.vertices.shape == V.shape and result.vertices.dtype == np.float64
+    np.testing.assert_array_equal(result.faces, F)
+    np.testing.assert_allclose(result.cage_v, blob_cage[0])  # the source's frame
+    assert result.deformed_cage_v.shape == blob_cage[0].shape
+    # the deformed cage carries the deformed shape: binding reproduces the output
+    b = cagekit.bind(V, *blob_cage)
+    np.testing.assert_allclose(b.deform(result.deformed_cage_v), result.vertices,
+                               atol=1e-9 * 10)
+    assert 90.0 < result.vertices.mean(axis=0).min()  # in the target's units
+    assert result.seconds > 0 and result.method == "cage"
+    assert set(result.losses) == {"chamfer", "p2f", "normal", "cage"}
+
+
+def test_point_cloud_target_and_source(blob, blob_cage):
+    V, F = blob
+    rng = np.random.default_rng(1)
+    Vt = V.copy()
+    Vt[Vt[:, 1] > 0] *= [1.25, 1.0, 1.25]
+    cloud = trimesh.Trimesh(Vt, F).sample(3000, seed=rng) + 0.003 * rng.standard_normal((3000, 3))
+    result = cagekit.deform(blob, cloud, cage=blob_cage)
+    scale = cagekit.deform(blob, cloud, method="scale")
+    cd = [chamfer_distance(r.vertices, cloud) for r in (result, scale)]
+    assert cd[0] < 0.7 * cd[1]
+    points = trimesh.Trimesh(V, F).sample(1500, seed=2)
+    moved = cagekit.deform(points, cloud)
+    assert moved.vertices.shape == (1500, 3) and len(moved.faces) == 0
+    assert "normal" in moved.losses  # shape terms on k-NN neighbourhoods
+
+
+def test_landmarks_replace_chamfer(blob, blob_cage):
+    V, F = blob
+    target = V * [1.3, 1.0, 1.0]
+    idx = np.array([0, 5, 40, 100, 300, 500])
+    moved_target = target[idx] + [0.0, 0.05, 0.0]
+    result = cagekit.deform(blob, (target, F), cage=blob_cage,
+                            landmarks=(V[idx], moved_target))
+    assert "landmarks" in result.losses and "chamfer" not in result.losses
+    before = np.abs(V[idx] * [1.3, 1, 1] - moved_target).max()
+    after = np.abs(result.vertices[idx] - moved_target).max()
+    assert after < 0.5 * before
+
+
+def test_scale_baseline_maps_bounding_boxes(blob):
+    V, F = blob
+    target = V * [3.0, 0.5, 2.0] + 7.0
+    result = cagekit.deform(blob, (target, F), method="scale")
+    np.testing.assert_allclose(result.vertices.min(axis=0), target.min(axis=0), atol=1e-12)
+    np.testing.assert_allclose(result.vertices.max(axis=0), target.max(axis=0), atol=1e-12)
+    assert result.cage_v is None and result.iterations == 0
+    flat = np.array([[-1.0, -1, 0], [1, 1, 0]])
+    np.testing.assert_allclose(box_scale(flat, flat * 2), [2.0, 2.0, 1.0])
+
+
+def test_nricp_baseline_runs(blob):
+    V, F = blob
+    target = V * [1.2, 1.0, 1.0]
+    result = cagekit.deform(blob, (target, F), method="nricp")
+    assert result.vertices.shape == V.shape and np.isfinite(result.vertices).all()
+    with pytest.raises(InputError, match="nricp needs a source mesh"):
+        cagekit.deform(V, (target, F), method="nricp")
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"method": "warp"}, "unknown method"),
+    ({"symmetry": "w"}, "symmetry"),
+    ({"weights": {"smooth": 1.0}}, "unknown energy term"),
+    ({"weights": {"cage": -1.0}}, ">= 0"),
+    ({"landmarks": (np.zeros((2, 3)), np.zeros((3, 3)))}, "landmarks"),
+    ({"reference": "target"}, "reference"),
+])
+def test_bad_arguments(blob, blob_cage, kwargs, message):
+    with pytest.raises(InputError, match=message):
+        cagekit.deform(blob, blob, cage=blob_cage, **kwargs)
+
+
+def test_nan_target_is_refused(blob):
+    bad = blob[0].copy()
+    bad[3, 1] = np.nan
+    with pytest.raises(InputError):
+        cagekit.deform(blob, (bad, blob[1]))
