@@ -719,8 +719,8 @@ def _load_landmark_pair(src_path, tgt_path):
                    "symmetry, cage.")
 @click.option("--reference", type=click.Choice(["aligned", "source"]), default="aligned",
               show_default=True,
-              help="Shape and cage terms compare with the source (paper) or with the "
-                   "box-aligned source (stretch is free).")
+              help="Shape and cage terms compare with the box-aligned source (stretch "
+                   "is free) or with the source as given (the paper's; cage weight 1).")
 @click.option("--coords", type=click.Choice(list(COORDINATE_METHODS)), default="mvc",
               show_default=True, help="Cage coordinates.")
 @click.option("--preview", type=click.Path(dir_okay=False), default=None,

@@ -17,11 +17,11 @@ Energy (all in the paper's frame, both shapes normalised on their own)::
          + w_cage   * mean (L_cage (C - C_0))^2   change of the cage's cotangent Laplacian
 
 Defaults: ``w_chamfer = w_landmarks = 1``, ``w_p2f = w_normal = 0.1`` (the paper's
-``alpha_shape``), ``w_symmetry = 1`` when an axis is given, ``w_cage = 0.3`` (ours: the
-paper gives no weight for a cage regulariser; of 0.1, 0.3, 1 and 3 on six benchmark
-pairs, 0.3 kept CD near its best while cutting dCotLap; 1 and 3 bend parts). With
-landmarks the Chamfer weight defaults to 0 (landmarks replace it); pass both weights to
-use both.
+``alpha_shape``), ``w_symmetry = 1`` when an axis is given, and ``w_cage = 0.3`` with the
+default ``reference="aligned"``, 1 with ``reference="source"`` (ours: the paper gives no
+weight for a cage regulariser; these were the best CD / dCotLap balances of 0.1, 0.3, 1
+and 3 on the benchmark's pairs for each reference). With landmarks the Chamfer weight
+defaults to 0 (landmarks replace it); pass both weights to use both.
 
 Decisions
 ---------
@@ -47,9 +47,9 @@ Decisions
   the source and cage as given (the paper's choice): every stretch costs, so the result
   keeps less of the box stretch, dCotLap (which charges for stretch) is lower, but parts
   bend where the target's proportions differ (the bundled chair pair, CD x1e2 / dCotLap
-  x1e3: aligned 0.23 / 0.25 with straight legs, source 0.34 / 0.09 with splayed legs;
-  the scaling baseline 1.44 / 0.27). docs/benchmarks.md has both on 20 pairs: medians
-  0.53 / 0.034 (aligned) and 0.53 / 0.019 (source).
+  x1e3: aligned 0.23 / 0.25 with straight legs, source 0.55 / 0.08 with splayed legs and
+  a narrower seat; the scaling baseline 1.44 / 0.27). docs/benchmarks.md has both on 20
+  pairs, and a picture.
 - **Subsets.** Chamfer uses ``samples`` area-uniform samples of each surface (a point
   cloud: its points, subsampled); the shape terms use the one-ring planes of at most
   ``shape_points`` seeded vertices. Both are drawn once from ``seed``: the same inputs and
@@ -100,6 +100,8 @@ DEFAULT_WEIGHTS = {
     "symmetry": 1.0,
     "cage": 0.3,
 }
+#: the cage weight's default with ``reference="source"``
+SOURCE_REFERENCE_CAGE_WEIGHT = 1.0
 
 
 @dataclass
@@ -326,8 +328,10 @@ def _minimise(energy: CageEnergy, C0, max_evaluations, tolerance):
 # -------------------------------------------------------------------------- the methods
 
 
-def _weights(user, landmarks, symmetry):
+def _weights(user, landmarks, symmetry, reference):
     weights = dict(DEFAULT_WEIGHTS)
+    if reference == "source":
+        weights["cage"] = SOURCE_REFERENCE_CAGE_WEIGHT
     if landmarks is not None:
         weights["chamfer"] = 0.0
     if symmetry is None:
@@ -443,7 +447,7 @@ def deform(source, target, cage=None, *, method: str = "cage", symmetry: str | N
         their mean squared distance.
     weights : dict, optional
         Overrides of :data:`DEFAULT_WEIGHTS` (``chamfer``, ``landmarks``, ``p2f``,
-        ``normal``, ``symmetry``, ``cage``).
+        ``normal``, ``symmetry``, ``cage``); ``result.weights`` holds those used.
     faces : int, default 200
         Face budget of the fitted cage when ``cage`` is None.
     samples : int, default 2000
@@ -460,7 +464,8 @@ def deform(source, target, cage=None, *, method: str = "cage", symmetry: str | N
         onto a stretched copy of itself comes back exact and parts keep their straight
         lines), or the source and its cage as given (the paper's choice: any stretch
         costs, so dCotLap, which charges for stretch, is lower, but parts bend where the
-        target's proportions differ). See the module docstring for measured numbers.
+        target's proportions differ; the cage weight then defaults to 1, not 0.3). See
+        the module docstring for measured numbers.
     coords : {"mvc"}
     seed : int, default 0
 
@@ -504,7 +509,7 @@ def deform(source, target, cage=None, *, method: str = "cage", symmetry: str | N
     elif method == "nricp":
         result.vertices = to_target(_nricp(Vs_n * box_scale(Vs_n, Vt_n), Fs, Vt_n, Ft))
     else:
-        weights = _weights(weights, landmarks, symmetry)
+        weights = _weights(weights, landmarks, symmetry, reference)
         lm = _landmarks(landmarks, cs, ss, ct, st)
         if cage is None:
             from cagekit.fitting import fit_cage
