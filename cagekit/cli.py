@@ -644,16 +644,28 @@ def synth(ctx, family, count, out, seed, fmt, resolution, as_json):
 
 
 def _parse_weights(ctx, param, values):
-    """``NAME=VALUE`` pairs of --weight into a dict."""
+    """``NAME=VALUE`` pairs of --weight into a dict, names and values checked."""
+    if not values:
+        return {}
+    from cagekit.deformation import DEFAULT_WEIGHTS
+
     weights = {}
     for text in values:
         name, sep, value = text.partition("=")
+        name = name.strip()
         try:
-            weights[name.strip()] = float(value)
+            number = float(value)
         except ValueError:
             sep = ""
         if not sep:
-            raise click.BadParameter(f"expected NAME=VALUE (for example cage=0.5), got {text!r}")
+            raise click.BadParameter(f"expected TERM=VALUE (for example cage=0.5), got {text!r}")
+        if name not in DEFAULT_WEIGHTS:
+            raise click.BadParameter(f"unknown term {name!r}; terms: "
+                                     f"{', '.join(DEFAULT_WEIGHTS)}")
+        if not (math.isfinite(number) and number >= 0):
+            raise click.BadParameter(f"the weight of {name} must be finite and >= 0, "
+                                     f"got {value!r}")
+        weights[name] = number
     return weights
 
 
@@ -667,6 +679,17 @@ def _deform_figures(source, target, result):
     Vt_n, center, scale = normalize(target[0])
     cd = chamfer((result.vertices - center) / scale, None, Vt_n, target[1])
     return {"cd": cd, "dcotlap": None, "cd_x1e2": cd * 1e2, "dcotlap_x1e3": None}
+
+
+def _bar_updater(bar):
+    """A ``progress(done, total)`` callback that moves a tqdm bar."""
+
+    def update(done, total):
+        bar.total = total
+        bar.n = min(done, total)
+        bar.refresh()
+
+    return update
 
 
 def _deformed_cage_path(path: str) -> str:
@@ -737,19 +760,23 @@ def deform(ctx, source, target, out, method, cage_path, faces, save_cage, symmet
     """Deform SOURCE so that it takes TARGET's shape, keeping SOURCE's detail.
 
     SOURCE is a mesh (or a point cloud, whose points move); TARGET a mesh or a point
-    cloud (noisy, partial or coarse). With --method cage (the default) SOURCE's cage is
-    moved to minimise Chamfer distance to TARGET plus the paper's shape-preservation and
-    cage terms (see cagekit/deformation.py); the result is written in TARGET's frame and
-    units. --json prints CD and dCotLap (as `cagekit eval`), each term's value, the
-    iterations and seconds.
+    cloud (noisy or coarse; a partial scan squashes SOURCE towards its seen side). With
+    --method cage (the default) SOURCE's cage is moved to minimise Chamfer distance to
+    TARGET plus the paper's shape-preservation and cage terms (see
+    cagekit/deformation.py); the result is written in TARGET's frame and units. --json
+    prints CD and dCotLap (as `cagekit eval`), each term's value, the iterations and
+    seconds.
 
     \b
     Example:
       cagekit deform chair.obj tall_chair.obj -o out.obj --symmetry x --preview out.png
     """
+    import numpy as np
+
     from cagekit import io
     from cagekit.cage import check_cage
     from cagekit.deformation import deform as run
+    from cagekit.geometry import normalize
 
     _start(ctx)
     inputs = (source, target, cage_path, *(landmarks or ()))
@@ -777,16 +804,40 @@ def deform(ctx, source, target, out, method, cage_path, faces, save_cage, symmet
     if cage_path is not None:
         cage_v, cage_f = io.load_mesh(cage_path)
         cage = (cage_v, check_cage(cage_v, cage_f, name=cage_path))
+    frames = {}
+    for path, (V, _) in ((source, src), (target, tgt)):
+        try:
+            frames[path] = normalize(V)[1:]
+        except InputError as exc:
+            raise InputError(exc.problem, path) from None
     pairs = _load_landmark_pair(*landmarks) if landmarks else None
+    for path, points, shape in zip(landmarks or (), pairs or (), (source, target)):
+        center, scale = frames[shape]
+        if np.abs((points - center) / scale).max() > 1.35:  # 10% of the diagonal out
+            raise InputError(f"landmarks lie far outside {shape}'s bounding box (more than "
+                             "10% of its diagonal): wrong file or units?", path)
+    bar = None
+    if _progress_enabled() and method == "cage":
+        from tqdm import tqdm
+
+        columns, lines = _terminal_size()
+        bar = tqdm(desc="deform", unit="eval", file=sys.stderr, leave=False, ncols=columns,
+                   nrows=lines)
     try:
         result = run(src, tgt, cage, method=method,
                      symmetry=None if symmetry == "none" else symmetry, landmarks=pairs,
                      weights=weights or None, faces=faces, reference=reference,
-                     coords=coords, seed=seed)
+                     coords=coords, seed=seed,
+                     progress=None if bar is None else _bar_updater(bar))
     except InputError as exc:
         if exc.path is None:
-            raise InputError(exc.problem, f"{source}, {target}") from None
+            low = exc.problem.lower()
+            blamed = (cage_path or source) if "cage" in low else f"{source}, {target}"
+            raise InputError(exc.problem, blamed) from None
         raise
+    finally:
+        if bar is not None:
+            bar.close()
     write(out, result.vertices, result.faces)
     if save_cage is not None:
         io.save_mesh(save_cage, result.cage_v, result.cage_f)

@@ -331,6 +331,9 @@ def normalize(V: ArrayLike) -> tuple[np.ndarray, np.ndarray, float]:
         raise InputError(
             "cannot normalise a shape whose points all coincide (zero extent)"
         )
+    if not np.isfinite(scale):
+        raise InputError("cannot normalise a shape whose extent overflows (coordinates "
+                         "too large)")
     return (V - center) / scale, center, scale
 
 

@@ -436,7 +436,9 @@ def shape_losses(X, ref: ShapeReference, p2f_weight: float = 1.0,
     members = np.zeros_like(D)  # direct (centroid) part of d(weighted sum)/d(members)
     grad = np.zeros_like(X)
     if normal_weight:
-        values["normal"] = _finite(np.mean(1.0 - np.abs(cos)), "normal loss")
+        # |cos| may exceed 1 by rounding: clip so the value is never negative
+        values["normal"] = _finite(np.mean(np.maximum(1.0 - np.abs(cos), 0.0)),
+                                   "normal loss")
         g_n -= (normal_weight * flip / r)[:, None] * ref.normals
     if p2f_weight:
         n = n_raw * flip[:, None]

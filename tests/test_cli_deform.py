@@ -93,7 +93,21 @@ def test_deform_bad_inputs_exit_2_with_one_line(pair, tmp_path):
     assert_bad_input(cagekit("deform", source, target, "-o", out, "--landmarks",
                              tmp_path / "a.json", tmp_path / "b.json"), "b.json")
     assert_bad_input(cagekit("deform", source, target, "-o", out, "--weight", "smooth=1"),
-                     str(source))
+                     "--weight", "smooth")
+    assert_bad_input(cagekit("deform", source, target, "-o", out, "--weight", "cage=nan"),
+                     "--weight")
+    one_point = tmp_path / "one.xyz"
+    one_point.write_text("0 0 0\n")
+    assert_bad_input(cagekit("deform", source, one_point, "-o", out), "one.xyz")
+    huge = tmp_path / "huge.xyz"
+    huge.write_text("-1.7e308 0 0\n1.7e308 1 0\n0 0 1\n")
+    assert_bad_input(cagekit("deform", source, huge, "-o", out, "--method", "scale"),
+                     "huge.xyz")
+    V, _ = load_obj(source)
+    save_landmarks(tmp_path / "far.json", {"a": V[0] * 100, "b": V[1] * 100})
+    save_landmarks(tmp_path / "near.json", {"a": V[0], "b": V[1]})
+    assert_bad_input(cagekit("deform", source, target, "-o", out, "--landmarks",
+                             tmp_path / "far.json", tmp_path / "near.json"), "far.json")
     assert_bad_input(cagekit("deform", source, target, "-o", out, "--weight", "cage"))
     assert_bad_input(cagekit("deform", source, target, "-o", out, "--method", "scale",
                              "--symmetry", "x"))

@@ -227,10 +227,24 @@ def test_nricp_baseline_runs(blob):
     ({"weights": {"cage": -1.0}}, ">= 0"),
     ({"landmarks": (np.zeros((2, 3)), np.zeros((3, 3)))}, "landmarks"),
     ({"reference": "target"}, "reference"),
+    ({"weights": {"landmarks": 1.0}}, "no landmarks"),
+    ({"weights": {"symmetry": 1.0}}, "no symmetry axis"),
+    ({"samples": 0}, "samples"),
+    ({"landmarks": (np.zeros((1, 3)) + 50.0, np.zeros((1, 3)))}, "far outside"),
 ])
 def test_bad_arguments(blob, blob_cage, kwargs, message):
     with pytest.raises(InputError, match=message):
         cagekit.deform(blob, blob, cage=blob_cage, **kwargs)
+
+
+def test_a_cage_must_be_a_pair(blob):
+    with pytest.raises(InputError, match="cage must be"):
+        cagekit.deform(blob, blob, cage=np.zeros((8, 3)))
+
+
+def test_two_points_are_a_cloud_not_a_pair(blob):
+    result = cagekit.deform(blob, [[0.0, 0, 0], [1.0, 2.0, 1.0]], method="scale")
+    assert np.allclose(result.vertices.min(axis=0), 0) and len(result.faces) == len(blob[1])
 
 
 def test_nan_target_is_refused(blob):
