@@ -93,9 +93,10 @@ from cagekit.geometry import (
     as_vertices,
     cotangent_laplacian,
     normalize,
-    sample_surface,
+    unpack_shape,
     vertex_neighborhoods,
 )
+from cagekit.metrics import surface_samples
 
 __all__ = ["DeformResult", "DEFAULT_WEIGHTS", "METHODS", "deform", "box_scale"]
 
@@ -163,14 +164,8 @@ class DeformResult:
 
 
 def _as_pair(shape, name):
-    """``(V, F)`` from a ``(V, F)`` pair, a trimesh object or a bare ``(n, 3)`` array."""
-    if hasattr(shape, "vertices"):
-        V, F = shape.vertices, getattr(shape, "faces", None)
-    elif (isinstance(shape, (tuple, list)) and len(shape) == 2
-          and np.ndim(shape[0]) == 2 and (shape[1] is None or np.ndim(shape[1]) == 2)):
-        V, F = shape  # a (V, F) pair; a list of two points has ndim(shape[0]) == 1
-    else:
-        V, F = shape, None
+    """Validated ``(V, F)`` of a shape in any form :func:`unpack_shape` accepts."""
+    V, F = unpack_shape(shape)
     V = as_vertices(V, f"{name} vertices")
     return V, as_faces(F, len(V), f"{name} faces")
 
@@ -180,12 +175,6 @@ def _subset(n, limit, rng):
     if n <= limit:
         return np.arange(n)
     return np.sort(rng.choice(n, size=limit, replace=False))
-
-
-def _samples(V, F, n, rng):
-    if len(F):
-        return sample_surface(V, F, n, seed=int(rng.integers(2**31)))
-    return V[_subset(len(V), n, rng)]
 
 
 def box_scale(Vs_n, Vt_n) -> np.ndarray:
@@ -401,8 +390,8 @@ def _cage_method(Vs_n, Fs, Vt_n, Ft, cage_n, cage_f, weights, symmetry, lm, samp
                  shape_points, max_evaluations, tolerance, seed, coords, reference,
                  progress):
     rng = np.random.default_rng(seed)
-    S = _samples(Vs_n, Fs, samples, rng)
-    T = _samples(Vt_n, Ft, samples, rng)
+    S = surface_samples(Vs_n, Fs, samples, seed=int(rng.integers(2**31)))
+    T = surface_samples(Vt_n, Ft, samples, seed=int(rng.integers(2**31)))
     used, own, index, mask = _shape_rows(Vs_n, Fs, shape_points, rng)
     src_lm, tgt_lm = lm
     parts = [Vs_n, S] + ([src_lm] if src_lm is not None else [])

@@ -49,6 +49,7 @@ from __future__ import annotations
 import numpy as np
 
 from cagekit.errors import InputError
+from cagekit.geometry import unpack_shape
 
 __all__ = ["fit_cage", "cage_report", "template_cage", "CageFitError", "METHODS"]
 
@@ -82,12 +83,10 @@ def template_cage():
 
 
 def _as_shape(shape_v, shape_f):
-    if hasattr(shape_v, "vertices"):  # a trimesh.Trimesh or trimesh.PointCloud
-        if shape_f is not None:
-            raise InputError("give either a mesh object or vertices and faces, not both")
-        shape_v, shape_f = shape_v.vertices, getattr(shape_v, "faces", None)
-    elif isinstance(shape_v, tuple) and len(shape_v) == 2 and shape_f is None:
-        shape_v, shape_f = shape_v  # a (vertices, faces) pair
+    if hasattr(shape_v, "vertices") and shape_f is not None:
+        raise InputError("give either a mesh object or vertices and faces, not both")
+    if shape_f is None:  # a mesh object, a (vertices, faces) pair or bare vertices
+        shape_v, shape_f = unpack_shape(shape_v)
     v = np.asarray(shape_v, dtype=np.float64)
     if v.ndim != 2 or v.shape[1] != 3:
         raise InputError(f"shape vertices must be an (n, 3) array, got {v.shape}")

@@ -61,6 +61,7 @@ __all__ = [
     "point_to_plane",
     "remove_duplicate_faces",
     "sample_surface",
+    "unpack_shape",
     "vertex_neighborhoods",
 ]
 
@@ -158,6 +159,29 @@ def as_faces(F: ArrayLike | None, n_vertices: int, name: str = "F") -> np.ndarra
             f"min {arr.min()}, max {arr.max()}"
         )
     return arr
+
+
+def unpack_shape(shape) -> tuple:
+    """``(vertices, faces or None)`` of a shape given in any of the accepted forms.
+
+    Accepts a ``trimesh.Trimesh`` or ``trimesh.PointCloud`` (anything with
+    ``.vertices``), a ``(V, F)`` pair (tuple or list; ``F`` may be None), or a bare
+    ``(n, 3)`` vertex array (a point cloud). A list of two points is a cloud, not a pair:
+    a pair's first member is 2-D. Nothing is validated (see :func:`as_vertices`,
+    :func:`as_faces`).
+
+    Examples
+    --------
+    >>> V, F = unpack_shape([[0.0, 0, 0], [1.0, 1, 1]])
+    >>> F is None
+    True
+    """
+    if hasattr(shape, "vertices"):
+        return shape.vertices, getattr(shape, "faces", None)
+    if (isinstance(shape, (tuple, list)) and len(shape) == 2 and np.ndim(shape[0]) == 2
+            and (shape[1] is None or np.ndim(shape[1]) == 2)):
+        return shape[0], shape[1]
+    return shape, None
 
 
 def _check_count(n: int, name: str, minimum: int) -> int:

@@ -72,6 +72,14 @@ def _finite(value: float, what: str) -> float:
 # ---------------------------------------------------------------------------- alignment
 
 
+def _scatter(n, index, values):
+    """Sum ``values[..., :]`` into row ``index[...]`` of an ``(n, 3)`` array."""
+    flat = index.ravel()
+    vals = values.reshape(-1, 3)
+    return np.stack([np.bincount(flat, weights=vals[:, a], minlength=n) for a in range(3)],
+                    axis=1)
+
+
 def _check_points(P, what):
     """FloatingPointError for NaN, inf, or coordinates whose squares would overflow."""
     if not np.isfinite(P).all():
@@ -91,11 +99,8 @@ def _chamfer_pair(P, Q, tree_Q=None):
     e_qp = Q - P[to_p]  # (t, 3)
     s, t = len(P), len(Q)
     value = np.einsum("ij,ij->", e_pq, e_pq) / s + np.einsum("ij,ij->", e_qp, e_qp) / t
-    grad_P = 2.0 * e_pq / s
-    grad_Q = 2.0 * e_qp / t
-    for axis in range(3):
-        grad_P[:, axis] -= np.bincount(to_p, weights=2.0 * e_qp[:, axis] / t, minlength=s)
-        grad_Q[:, axis] -= np.bincount(to_q, weights=2.0 * e_pq[:, axis] / s, minlength=t)
+    grad_P = 2.0 * e_pq / s - _scatter(s, to_p, 2.0 * e_qp / t)
+    grad_Q = 2.0 * e_qp / t - _scatter(t, to_q, 2.0 * e_pq / s)
     return _finite(value, "Chamfer distance"), grad_P, grad_Q
 
 
@@ -263,10 +268,7 @@ def cage_symmetry_loss(C, partner, offset, axis: str) -> tuple[float, np.ndarray
     e = C - mirror(C[partner], axis) - offset
     k = len(C)
     value = np.einsum("ij,ij->", e, e) / k
-    grad = 2.0 * e / k
-    back = mirror(-2.0 * e / k, axis)
-    for a in range(3):
-        grad[:, a] += np.bincount(partner, weights=back[:, a], minlength=k)
+    grad = 2.0 * e / k + _scatter(k, partner, mirror(-2.0 * e / k, axis))
     return _finite(value, "cage symmetry loss"), grad
 
 
@@ -389,14 +391,6 @@ def _normal_backward(g, lam, vec, D, m, mask):
         outer = np.einsum("r,ri,rj->rij", a, vec[:, :, k], n)
         G -= 0.5 * (outer + outer.transpose(0, 2, 1))
     return (2.0 / m)[:, None, None] * np.einsum("rik,rjk->rji", G, D) * mask[:, :, None]
-
-
-def _scatter(n, index, values):
-    """Sum ``values[r, j]`` into row ``index[r, j]`` of an ``(n, 3)`` array."""
-    flat = index.ravel()
-    vals = values.reshape(-1, 3)
-    return np.stack([np.bincount(flat, weights=vals[:, a], minlength=n) for a in range(3)],
-                    axis=1)
 
 
 def shape_losses(X, ref: ShapeReference, p2f_weight: float = 1.0,
