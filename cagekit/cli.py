@@ -692,6 +692,17 @@ def _bar_updater(bar):
     return update
 
 
+def _load_model(path):
+    """(model, samples per shape) of a checkpoint; one clear line if torch is missing."""
+    try:
+        from cagekit_learn.train import load_model
+    except ImportError as exc:
+        raise InputError(f"--model needs the learned mode: pip install -e '.[learn]' ({exc})",
+                         path) from None
+    model, payload = load_model(path)
+    return model, int(payload.get("config", {}).get("points", 1024))
+
+
 def _deformed_cage_path(path: str) -> str:
     stem, ext = os.path.splitext(path)
     return f"{stem}_deformed{ext}"
@@ -749,6 +760,13 @@ def _load_landmark_pair(src_path, tgt_path):
 @click.option("--preview", type=click.Path(dir_okay=False), default=None,
               help="Draw source, target and result side by side (cages as wireframes) "
                    "into this PNG.")
+@click.option("--model", "model_path", type=click.Path(), default=None,
+              help="A trained model (RUN_DIR or RUN_DIR/checkpoint.pt of `cagekit train`, "
+                   "needs cagekit[learn]): predict the cage and its deformation in one "
+                   "forward pass.")
+@click.option("--refine", is_flag=True,
+              help="With --model: then optimise the predicted cage per pair (as --method "
+                   "cage, started from the prediction).")
 @_preview_up_option
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
               help="Seed of the samples (and of the fitted cage).")
@@ -756,7 +774,8 @@ def _load_landmark_pair(src_path, tgt_path):
 @_debug_option
 @click.pass_context
 def deform(ctx, source, target, out, method, cage_path, faces, save_cage, symmetry,
-           landmarks, weights, reference, coords, preview, up, seed, as_json):
+           landmarks, weights, reference, coords, model_path, refine, preview, up, seed,
+           as_json):
     """Deform SOURCE so that it takes TARGET's shape, keeping SOURCE's detail.
 
     SOURCE is a mesh (or a point cloud, whose points move); TARGET a mesh or a point
@@ -779,13 +798,19 @@ def deform(ctx, source, target, out, method, cage_path, faces, save_cage, symmet
     from cagekit.geometry import normalize
 
     _start(ctx)
-    inputs = (source, target, cage_path, *(landmarks or ()))
+    inputs = (source, target, cage_path, model_path, *(landmarks or ()))
     _check_output(out, inputs)
     outputs = [out]
     if method != "cage" and (cage_path or save_cage or landmarks or weights
-                             or symmetry != "none"):
-        raise click.UsageError("--cage, --save-cage, --landmarks, --weight and --symmetry "
-                               "apply to --method cage only")
+                             or symmetry != "none" or model_path):
+        raise click.UsageError("--cage, --save-cage, --landmarks, --weight, --symmetry and "
+                               "--model apply to --method cage only")
+    if refine and not model_path:
+        raise click.UsageError("--refine refines a prediction: it needs --model")
+    if model_path and (cage_path or landmarks or (weights and not refine)):
+        raise click.UsageError("--model predicts the cage: --cage and --landmarks do not "
+                               "apply, and --weight only with --refine")
+    model = _load_model(model_path) if model_path else None
     if save_cage is not None:
         mesh_exts = set(io.SUPPORTED_MESH_EXTENSIONS) - {".gltf"}
         for path in (save_cage, _deformed_cage_path(save_cage)):
@@ -817,18 +842,26 @@ def deform(ctx, source, target, out, method, cage_path, faces, save_cage, symmet
             raise InputError(f"landmarks lie far outside {shape}'s bounding box (more than "
                              "10% of its diagonal): wrong file or units?", path)
     bar = None
-    if _progress_enabled() and method == "cage":
+    if _progress_enabled() and method == "cage" and (model_path is None or refine):
         from tqdm import tqdm
 
         columns, lines = _terminal_size()
         bar = tqdm(desc="deform", unit="eval", file=sys.stderr, leave=False, ncols=columns,
                    nrows=lines)
     try:
-        result = run(src, tgt, cage, method=method,
-                     symmetry=None if symmetry == "none" else symmetry, landmarks=pairs,
-                     weights=weights or None, faces=faces, reference=reference,
-                     coords=coords, seed=seed,
-                     progress=None if bar is None else _bar_updater(bar))
+        options = {"symmetry": None if symmetry == "none" else symmetry,
+                   "weights": weights or None, "reference": reference, "coords": coords,
+                   "progress": None if bar is None else _bar_updater(bar)}
+        if model is not None:
+            from cagekit_learn.inference import deform_with_model
+
+            net, points = model
+            result = deform_with_model(net, src, tgt, points=points, seed=seed,
+                                       refine=refine, **(options if refine else {}))
+            method = result.method
+        else:
+            result = run(src, tgt, cage, method=method, landmarks=pairs, faces=faces,
+                         seed=seed, **options)
     except InputError as exc:
         if exc.path is None:
             low = exc.problem.lower()
@@ -867,6 +900,104 @@ def deform(ctx, source, target, out, method, cage_path, faces, save_cage, symmet
                     "seconds": result.seconds})
     else:
         click.echo(f"wrote {out}: {caption}")
+
+
+@main.command(short_help="Train the learned cages (N_c, N_d) on a folder of meshes.")
+@click.argument("data", metavar="DATA_DIR")
+@click.option("-o", "--output", "run_dir", required=True, type=click.Path(file_okay=False),
+              help="Run folder: checkpoint.pt, log.csv (and tensorboard/ when installed).")
+@click.option("--epochs", default=100, show_default=True, type=click.IntRange(min=1))
+@click.option("--batch-size", default=8, show_default=True, type=click.IntRange(min=1),
+              help="Pairs per step (per process under torchrun).")
+@click.option("--lr", default=1e-3, show_default=True, type=click.FloatRange(min=0,
+              min_open=True), help="Adam's learning rate (N_c at a tenth of it).")
+@click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), default="auto",
+              show_default=True)
+@click.option("--resume", is_flag=True,
+              help="Continue the run in --output exactly where it stopped (its own "
+                   "settings; --epochs, --max-steps and --minutes may be raised).")
+@click.option("--points", default=1024, show_default=True, type=click.IntRange(min=16),
+              help="Samples per shape.")
+@click.option("--bottleneck", default=256, show_default=True, type=click.IntRange(min=1),
+              help="Size of the PointNet code.")
+@click.option("--nc", type=click.Choice(["learned", "identity", "source-invariant"]),
+              default="learned", show_default=True, help="The N_c variant.")
+@click.option("--source-cage", type=click.Path(dir_okay=False), default=None,
+              help="A fixed source cage (mesh file, in the paper's frame: the source "
+                   "normalised to [-1, 1]) instead of N_c, for a collection that shares "
+                   "one source.")
+@click.option("--no-box-align", is_flag=True,
+              help="N_d offsets the source cage itself, not its box-aligned stretch.")
+@click.option("--symmetry", type=click.Choice(["x", "y", "z", "none"]), default="none",
+              show_default=True, help="Add the symmetry loss about this axis.")
+@click.option("--align", type=click.Choice(["chamfer", "l2"]), default="chamfer",
+              show_default=True,
+              help="Alignment loss; l2 needs a collection sampled in correspondence.")
+@click.option("--no-augment", is_flag=True, help="No anisotropic scaling augmentation.")
+@click.option("--checkpoint-every", default=200, show_default=True,
+              type=click.IntRange(min=1), help="Steps between checkpoints.")
+@click.option("--max-steps", default=None, type=click.IntRange(min=1),
+              help="Stop after this many steps in all.")
+@click.option("--minutes", default=None, type=click.FloatRange(min=0, min_open=True),
+              help="Stop (with a checkpoint) after this much training time.")
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0))
+@_json_option
+@_debug_option
+@click.pass_context
+def train(ctx, data, run_dir, epochs, batch_size, lr, device, resume, points, bottleneck,
+          nc, source_cage, no_box_align, symmetry, align, no_augment, checkpoint_every,
+          max_steps, minutes, seed, as_json):
+    """Train N_c and N_d (the paper's networks) on the meshes under DATA_DIR.
+
+    DATA_DIR is searched recursively for meshes (ShapeNet's layout works as is); each is
+    normalised and sampled once, cached in DATA_DIR/.cagekit-cache. `synthetic:chairs:300`
+    (or tables, vases) trains on procedural shapes instead. Scale out with
+    `torchrun --nproc-per-node N -m cagekit_learn.train DATA_DIR -o RUN_DIR`.
+
+    \b
+    Example:
+      cagekit train synthetic:chairs:300 -o runs/chairs --epochs 50
+      cagekit deform a.obj b.obj --model runs/chairs -o out.obj
+    """
+    _start(ctx)
+    try:
+        from cagekit_learn.networks import ModelConfig
+        from cagekit_learn.train import TrainConfig
+        from cagekit_learn.train import train as run
+    except ImportError as exc:
+        raise InputError(f"training needs the learned mode: pip install -e '.[learn]' "
+                         f"({exc})") from None
+    model = ModelConfig(bottleneck=bottleneck, nc=nc, box_align=not no_box_align)
+    if source_cage is not None:
+        from cagekit import io
+        from cagekit.cage import check_cage
+
+        cage_v, cage_f = io.load_mesh(source_cage)
+        cage_f = check_cage(cage_v, cage_f, name=source_cage)
+        model.fixed_cage_v = cage_v.tolist()
+        model.fixed_cage_f = cage_f.tolist()
+    if os.path.exists(os.path.join(run_dir, "checkpoint.pt")) and not resume:
+        raise InputError("holds a checkpoint already: --resume to continue it, or choose "
+                         "another folder", run_dir)
+    config = TrainConfig(
+        data=data, run_dir=run_dir, epochs=epochs, batch_size=batch_size, lr=lr,
+        points=points, seed=seed, device=device, checkpoint_every=checkpoint_every,
+        symmetry=None if symmetry == "none" else symmetry, align=align,
+        augment=not no_augment, max_steps=max_steps, max_minutes=minutes,
+        model=model.to_dict())
+    result = run(config, resume=resume, progress=_progress_enabled())
+    figures = {"run_dir": run_dir, "steps": result.step, "epochs": result.epoch,
+               "skipped_steps": result.skipped, "losses": result.last_losses,
+               "seconds": result.seconds, "pairs_per_second": result.pairs_per_second}
+    if int(os.environ.get("RANK", "0")) != 0:
+        return
+    if as_json:
+        _emit_json(figures)
+    else:
+        loss = result.last_losses.get("loss", float("nan"))
+        click.echo(f"trained {result.step} steps ({result.pairs_per_second:.1f} pairs/s, "
+                   f"{result.skipped} skipped); last loss {loss:.4g}; wrote "
+                   f"{os.path.join(run_dir, 'checkpoint.pt')}")
 
 
 if __name__ == "__main__":

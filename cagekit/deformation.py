@@ -125,7 +125,8 @@ class DeformResult:
     faces : (m, 3) int64
         The source's faces (empty for a point-cloud source).
     method : str
-        ``"cage"``, ``"scale"`` or ``"nricp"``.
+        ``"cage"``, ``"scale"`` or ``"nricp"`` (``"learned"`` or ``"learned+refine"`` from
+        :func:`cagekit_learn.inference.deform_with_model`).
     cage_v, cage_f : (k, 3) float64 and (c, 3) int64, or None
         The source cage in the source's frame (``cage`` only).
     deformed_cage_v : (k, 3) float64 or None
@@ -388,7 +389,7 @@ def _shape_rows(Vs_n, Fs, shape_points, rng):
 
 def _cage_method(Vs_n, Fs, Vt_n, Ft, cage_n, cage_f, weights, symmetry, lm, samples,
                  shape_points, max_evaluations, tolerance, seed, coords, reference,
-                 progress):
+                 progress, C_start=None):
     rng = np.random.default_rng(seed)
     S = surface_samples(Vs_n, Fs, samples, seed=int(rng.integers(2**31)))
     T = surface_samples(Vt_n, Ft, samples, seed=int(rng.integers(2**31)))
@@ -408,9 +409,10 @@ def _cage_method(Vs_n, Fs, Vt_n, Ft, cage_n, cage_f, weights, symmetry, lm, samp
     shape_ref = losses.shape_reference(W_shape @ C_ref, own, index, mask)
     energy = CageEnergy(W_samples, T, W_shape, shape_ref, binding.cage_f, C_ref, weights,
                         symmetry, W_landmarks, tgt_lm)
-    # fine: the full energy
-    start, _, _ = energy.evaluate(C_box)
-    C = _minimise(energy, C_box, max_evaluations, tolerance, progress)
+    # fine: the full energy, from the boxes or from a given deformed cage
+    C0 = C_box if C_start is None else C_start
+    start, _, _ = energy.evaluate(C0)
+    C = _minimise(energy, C0, max_evaluations, tolerance, progress)
     total, _, terms = energy.evaluate(C)
     return (W_vertices @ C, binding.cage_v, binding.cage_f, C, terms, (start, total),
             energy.evaluations)
@@ -434,7 +436,7 @@ def deform(source, target, cage=None, *, method: str = "cage", symmetry: str | N
            landmarks=None, weights: dict | None = None, faces: int = 200,
            samples: int = 2000, shape_points: int = 500, max_evaluations: int = 60,
            tolerance: float = 1e-7, reference: str = "aligned", coords: str = "mvc",
-           seed: int = 0, progress=None) -> DeformResult:
+           seed: int = 0, progress=None, initial_cage=None) -> DeformResult:
     """Deform a source so it takes the shape of a target, keeping its detail.
 
     Parameters
@@ -486,6 +488,11 @@ def deform(source, target, cage=None, *, method: str = "cage", symmetry: str | N
     progress : callable, optional
         Called as ``progress(evaluations, max_evaluations)`` after each energy
         evaluation of ``cage`` (the command line moves a progress bar with it).
+    initial_cage : (k, 3) array_like of float, optional
+        Where the optimisation starts: a deformed position of ``cage``'s vertices in the
+        target's frame and units (for example a learned prediction, which ``cagekit
+        deform --model --refine`` refines). Default: the box-aligned cage. Needs
+        ``cage``; the references of the shape and cage terms are unchanged.
 
     Returns
     -------
@@ -543,9 +550,18 @@ def deform(source, target, cage=None, *, method: str = "cage", symmetry: str | N
             except (TypeError, ValueError):
                 raise InputError("cage must be a (vertices, faces) pair") from None
             cage_n = (as_vertices(cage_v, "cage vertices") - cs) / ss
+        C_start = None
+        if initial_cage is not None:
+            if cage is None:
+                raise InputError("initial_cage needs the cage it deforms (cage=...)")
+            C_start = (as_vertices(initial_cage, "initial cage vertices") - ct) / st
+            if C_start.shape != cage_n.shape:
+                raise InputError(f"initial cage has {len(C_start)} vertices, the cage "
+                                 f"{len(cage_n)}")
         X, cage_n, cage_f, C, terms, (initial, total), evaluations = _cage_method(
             Vs_n, Fs, Vt_n, Ft, cage_n, cage_f, weights, symmetry, lm, samples,
-            shape_points, max_evaluations, tolerance, seed, coords, reference, progress)
+            shape_points, max_evaluations, tolerance, seed, coords, reference, progress,
+            C_start)
         result.vertices = to_target(X)
         result.cage_v, result.cage_f = cage_n * ss + cs, cage_f
         result.deformed_cage_v = to_target(C)

@@ -17,6 +17,7 @@ term                   value
 :func:`normal_loss`    ``mean_i (1 - |n_i(X) . n_i^0|)``, ``n_i`` the PCA normal
                        (both: :func:`shape_losses`, one eigen-decomposition)
 :func:`laplacian_loss` ``mean over k x 3 entries of (L (C - C_ref))^2``
+:func:`mvc_loss`       ``mean over n x k entries of min(W, 0)^2`` (negative MVC weights)
 =====================  ==================================================================
 
 Decisions
@@ -53,6 +54,7 @@ __all__ = [
     "laplacian_loss",
     "mirror",
     "mirror_partners",
+    "mvc_loss",
     "normal_loss",
     "p2f_loss",
     "shape_losses",
@@ -300,6 +302,39 @@ def laplacian_loss(C, L: scipy.sparse.spmatrix, C_ref) -> tuple[float, np.ndarra
     R = L @ (C - C_ref)
     value = np.einsum("ij,ij->", R, R) / R.size
     return _finite(value, "cage Laplacian loss"), 2.0 * (L.T @ R) / R.size
+
+
+def mvc_loss(W) -> tuple[float, np.ndarray]:
+    """Mean squared negative mean value coordinate, ``L_MVC`` of the paper, with ``dL/dW``.
+
+    Mean value coordinates of points outside the cage's kernel go negative, which makes
+    the deformation non-local; this term pushes the cage to keep them non-negative.
+
+    Parameters
+    ----------
+    W : (n, k) float64
+        Binding weights (mean value coordinates of ``n`` points with respect to ``k``
+        cage vertices).
+
+    Returns
+    -------
+    value : float
+        ``mean over all n x k entries of min(W, 0)^2``: 0 when no weight is negative.
+    grad : (n, k) float64
+        ``2 min(W, 0) / W.size``.
+
+    Examples
+    --------
+    >>> value, grad = mvc_loss(np.array([[1.5, -0.5], [0.0, 0.25]]))
+    >>> value, grad.tolist()
+    (0.0625, [[0.0, -0.25], [0.0, 0.0]])
+    """
+    W = np.asarray(W, dtype=np.float64)
+    if W.size == 0:
+        raise InputError("MVC loss of an empty weight matrix")
+    negative = np.minimum(W, 0.0)
+    value = np.vdot(negative, negative) / W.size
+    return _finite(value, "MVC loss"), 2.0 * negative / W.size
 
 
 # ------------------------------------------------------------------------ shape terms

@@ -150,6 +150,25 @@ def test_result_fields_and_frames(blob, blob_cage):
     assert set(result.losses) == {"chamfer", "p2f", "normal", "cage"}
 
 
+def test_initial_cage_sets_where_the_optimiser_starts(blob, blob_cage):
+    V, F = blob
+    target = (V * [1.3, 0.9, 1.1] * 5.0 + 2.0, F)
+    first = cagekit.deform(blob, target, cage=blob_cage, max_evaluations=15)
+    # starting from an earlier result (in the target's frame) continues from its energy
+    again = cagekit.deform(blob, target, cage=blob_cage, max_evaluations=15,
+                           initial_cage=first.deformed_cage_v)
+    assert again.initial_energy == pytest.approx(first.energy, rel=1e-9)
+    assert again.energy <= first.energy
+    # a start far from the answer begins higher than the box-aligned default
+    far = cagekit.deform(blob, target, cage=blob_cage, max_evaluations=1,
+                         initial_cage=first.deformed_cage_v * 1.5)
+    assert far.initial_energy > first.initial_energy
+    with pytest.raises(InputError, match="needs the cage"):
+        cagekit.deform(blob, target, initial_cage=first.deformed_cage_v)
+    with pytest.raises(InputError, match="vertices"):
+        cagekit.deform(blob, target, cage=blob_cage, initial_cage=first.deformed_cage_v[:-1])
+
+
 def test_point_cloud_target_and_source(blob, blob_cage):
     V, F = blob
     rng = np.random.default_rng(1)

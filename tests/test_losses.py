@@ -21,6 +21,7 @@ from cagekit.losses import (
     laplacian_loss,
     mirror,
     mirror_partners,
+    mvc_loss,
     normal_loss,
     p2f_loss,
     shape_losses,
@@ -534,3 +535,48 @@ def test_chamfer_nan_raises_floating_point_error(where):
     (P if where == "P" else Q)[1, 1] = np.nan
     with pytest.raises(FloatingPointError):
         chamfer_loss(P, Q)
+
+
+# ------------------------------------------------------------------------------------ MVC
+
+
+def test_mvc_known_value():
+    W = np.array([[1.5, -0.5, 0.0], [-1.0, 0.25, 0.0]])
+    value, grad = mvc_loss(W)
+    assert value == pytest.approx((0.25 + 1.0) / 6)
+    np.testing.assert_array_equal(grad, [[0.0, -1 / 6, 0.0], [-2 / 6, 0.0, 0.0]])
+
+
+def test_mvc_gradient_matches_finite_differences():
+    W = np.random.default_rng(16).normal(0.1, 0.5, (8, 5))
+    W[np.abs(W) < 1e-3] = 0.5  # away from the kink at 0
+    value, _ = assert_grad(mvc_loss, W)
+    assert value > 0
+
+
+def test_mvc_zero_for_non_negative_weights():
+    W = np.abs(np.random.default_rng(17).normal(size=(10, 6)))
+    W[0, 0] = 0.0
+    value, grad = mvc_loss(W)
+    assert value == 0.0
+    np.testing.assert_array_equal(grad, 0.0)
+
+
+@settings(max_examples=20)
+@given(seed=SEEDS, n=st.integers(1, 20), k=st.integers(1, 12))
+def test_mvc_matches_definition(seed, n, k):
+    W = np.random.default_rng(seed).normal(0.1, 1.0, (n, k))
+    value, grad = mvc_loss(W.tolist())  # array_like
+    negative = np.minimum(W, 0.0)
+    assert value == pytest.approx(np.mean(negative**2), rel=1e-12, abs=0)
+    assert 0.0 <= value <= np.mean(W**2)
+    np.testing.assert_allclose(grad, 2.0 * negative / W.size, rtol=1e-15, atol=0)
+
+
+def test_mvc_bad_input_raises():
+    W = np.zeros((3, 4))
+    W[1, 2] = np.nan
+    with pytest.raises(FloatingPointError):
+        mvc_loss(W)
+    with pytest.raises(InputError):
+        mvc_loss(np.zeros((0, 4)))

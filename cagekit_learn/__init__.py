@@ -1,0 +1,40 @@
+"""cagekit_learn: the learned mode of "Neural Cages" on cagekit's coordinate API (torch).
+
+Modules, one concept each:
+
+- :mod:`cagekit_learn.coords`: differentiable, batched mean value coordinates
+  (``bind``/``deform`` as in the core; equal to it to 1e-10 in float64);
+- :mod:`cagekit_learn.losses`: L_MVC, Chamfer / L2 alignment, L_p2f, L_normal, L_symm,
+  the same functions as :mod:`cagekit.losses` (tests prove it);
+- :mod:`cagekit_learn.networks`: the PointNet encoder, N_c and N_d;
+- :mod:`cagekit_learn.data`: folders of meshes (cached samples), pairs, augmentation;
+- :mod:`cagekit_learn.train`: ``cagekit train`` (Adam, checkpoints, exact resume,
+  DistributedDataParallel under torchrun);
+- :mod:`cagekit_learn.checkpoint`: atomic checkpoints read with ``weights_only=True``;
+- :mod:`cagekit_learn.inference`: ``cagekit deform --model [--refine]``.
+
+Install with ``pip install -e '.[learn]'`` (torch 2.13.0). The core package never
+imports this one, nor torch.
+
+Examples
+--------
+>>> import torch, cagekit_learn
+>>> from cagekit.shapes import box_cage
+>>> v, f = box_cage()
+>>> cage = torch.tensor(v, requires_grad=True)
+>>> b = cagekit_learn.bind(torch.zeros(1, 3, dtype=torch.float64), cage, f)
+>>> b.deform(2 * cage).sum().backward()
+>>> tuple(b.weights.shape), bool(torch.isfinite(cage.grad).all())
+((1, 8), True)
+"""
+
+__all__ = ["bind", "deform", "CageBinding", "mean_value_coordinates"]
+
+
+def __getattr__(name):
+    # torch is imported on first use, so that ``cagekit_learn.data`` stays light
+    if name in __all__:
+        from cagekit_learn import coords
+
+        return getattr(coords, name)
+    raise AttributeError(f"module 'cagekit_learn' has no attribute {name!r}")

@@ -1,0 +1,87 @@
+"""Checkpoints: written atomically, read without ever running code from the file.
+
+A checkpoint is one ``torch.save`` file holding only tensors and plain Python values:
+
+``{"format": 1, "model": state_dict, "optimizer": state_dict, "config": {...},
+"model_config": {...}, "step": int, "epoch": int, "skipped": int, "rng": tensor}``
+
+It is read with ``torch.load(..., weights_only=True)``, PyTorch's restricted unpickler,
+which rebuilds tensors and containers and refuses anything else, so a malicious file
+cannot execute code. It is written to a temporary file in the same folder, flushed,
+and renamed over the old one, so a run killed while saving leaves the previous
+checkpoint whole.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import torch
+
+from cagekit.errors import InputError
+
+__all__ = ["FORMAT", "CHECKPOINT_NAME", "save_checkpoint", "load_checkpoint", "resolve"]
+
+FORMAT = 1
+CHECKPOINT_NAME = "checkpoint.pt"
+
+
+def resolve(path) -> Path:
+    """A checkpoint file from a path that may name the run folder instead."""
+    path = Path(path)
+    return path / CHECKPOINT_NAME if path.is_dir() else path
+
+
+def save_checkpoint(path, payload: dict) -> None:
+    """Write ``payload`` to ``path`` atomically (temporary file, fsync, rename).
+
+    Parameters
+    ----------
+    path : str or Path
+    payload : dict
+        Tensors and plain Python values only.
+    """
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        with open(tmp, "wb") as handle:
+            torch.save({"format": FORMAT, **payload}, handle)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def load_checkpoint(path, map_location="cpu") -> dict:
+    """Read a checkpoint with ``torch.load(weights_only=True)``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file, or a run folder holding ``checkpoint.pt``.
+    map_location : str or torch.device, default "cpu"
+
+    Returns
+    -------
+    dict
+
+    Raises
+    ------
+    InputError
+        Missing or unreadable file, a file that needs more than tensors and plain values
+        (refused by the restricted unpickler), or not a cagekit checkpoint.
+    """
+    path = resolve(path)
+    if not path.is_file():
+        raise InputError(f"{path}: no such checkpoint file")
+    try:
+        payload = torch.load(path, map_location=map_location, weights_only=True)
+    except Exception as exc:  # noqa: BLE001 - any failure is the file's fault here
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise InputError(f"{path}: not a readable checkpoint ({first})") from None
+    if not isinstance(payload, dict) or payload.get("format") != FORMAT or "model" not in payload:
+        raise InputError(f"{path}: not a cagekit checkpoint (format {FORMAT})")
+    return payload

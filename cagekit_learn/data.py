@@ -1,0 +1,782 @@
+"""Training data of the learned mode: normalised point samples of shape collections.
+
+A :class:`ShapeCollection` holds ``P`` surface samples of each of ``N`` shapes, every
+shape normalised on its own into the paper's frame (bounding-box centre at the origin,
+largest half-extent 1; :func:`cagekit.normalize`). It comes from a folder of meshes
+(:meth:`ShapeCollection.from_folder`, cached incrementally), from the procedural families
+(:meth:`ShapeCollection.synthetic`) or from arrays. Training draws (source, target) pairs
+each epoch (:func:`epoch_pairs`), splits them between ranks (:func:`shard`) and turns them
+into tensors with the paper's anisotropic-scaling augmentation (:func:`make_batch`).
+
+Decisions
+---------
+- **Determinism.** Every random draw is seeded from explicit integers through
+  ``numpy.random.SeedSequence`` with a leading tag per use, so no two uses share a stream
+  (NumPy treats trailing zero words of a seed as absent: ``[1, 2]`` and ``[1, 2, 0]`` give
+  the same stream, which the tags rule out). A shape's samples depend only on
+  ``(seed, name)`` (its name goes through ``zlib.crc32``), so adding or removing a file
+  changes no other shape's samples.
+- **Cache.** :meth:`ShapeCollection.from_folder` keeps ``samples.npz`` and
+  ``manifest.json`` in ``<root>/.cagekit-cache`` (a hidden folder, which
+  :func:`find_meshes` skips). A file is identified by its relative path, size and
+  ``mtime_ns``; an unchanged file is never read again. Both files are written atomically
+  (the samples first, then the manifest) and carry the same random token; a cache whose
+  files disagree, or which cannot be read, is ignored and rebuilt.
+- **Point clouds.** A file with a mesh extension but no faces (a PLY point cloud) is
+  normalised the same way; ``P`` of its points are drawn, without replacement when it has
+  at least ``P`` points and with replacement otherwise.
+- **Augmentation** is seeded per batch row from ``(seed, epoch, step, row, source index,
+  target index)``: a resumed run reproduces a batch exactly, and ranks of a distributed
+  run, which share ``(epoch, step)``, still draw different scales.
+- **Imports.** Only NumPy and cagekit at import time; torch is imported by
+  :func:`make_batch` alone.
+
+Examples
+--------
+>>> shapes = ShapeCollection.synthetic("vases", n=4, points=256, resolution=0.5)
+>>> shapes.points.shape, shapes.names[1]
+((4, 256, 3), 'vases/0001')
+>>> pairs = shard(epoch_pairs(len(shapes), epoch=0), rank=0, world_size=2)
+>>> batch = make_batch(shapes, pairs, epoch=0, step=0)  # doctest: +SKIP
+>>> batch["source"].shape  # doctest: +SKIP
+torch.Size([2, 256, 3])
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import pathlib
+import secrets
+import warnings
+import zlib
+
+import numpy as np
+
+from cagekit.datasets import synthetic as _synthetic
+from cagekit.errors import InputError
+from cagekit.geometry import normalize
+from cagekit.io import SUPPORTED_MESH_EXTENSIONS, atomic_output, load_shape
+from cagekit.metrics import surface_samples
+
+__all__ = [
+    "CACHE_DIRNAME",
+    "CACHE_FORMAT",
+    "MESH_EXTENSIONS",
+    "ShapeCollection",
+    "augment",
+    "epoch_pairs",
+    "find_meshes",
+    "make_batch",
+    "shard",
+]
+
+MESH_EXTENSIONS = SUPPORTED_MESH_EXTENSIONS
+"""Extensions :func:`find_meshes` collects, case-insensitive (as :func:`cagekit.io.load_mesh`)."""
+
+CACHE_DIRNAME = ".cagekit-cache"
+"""Name of the default cache folder, inside the collection's root."""
+
+CACHE_FORMAT = 1
+"""Version of the cache layout; a cache of another version is rebuilt."""
+
+_SAMPLES_FILE = "samples.npz"
+_MANIFEST_FILE = "manifest.json"
+
+# Leading words of the seeds, one per use of randomness (see "Determinism" above).
+_TAG_SAMPLES = 0x5A3D1E01
+_TAG_PAIRS = 0x5A3D1E02
+_TAG_AUGMENT = 0x5A3D1E03
+_TAG_SPLIT = 0x5A3D1E04
+_TAG_CORRESPONDING = 0x5A3D1E05
+
+
+# ------------------------------------------------------------------------------ helpers
+
+
+def _count(value, name: str, minimum: int = 0) -> int:
+    """``value`` as an int >= ``minimum``, or InputError."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise InputError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def _shape_seed(seed: int, name: str) -> int:
+    """Sampling seed of one shape: a function of ``(seed, name)`` only."""
+    state = np.random.SeedSequence([_TAG_SAMPLES, seed, zlib.crc32(name.encode("utf-8"))])
+    return int(state.generate_state(1, dtype=np.uint64)[0])
+
+
+def _sample_shape(V, F, points: int, seed: int) -> np.ndarray:
+    """Normalise ``V`` and draw ``points`` samples; (points, 3) float32.
+
+    Raises InputError for shapes that cannot be normalised or sampled (zero extent, zero
+    area).
+    """
+    Vn = normalize(V)[0]
+    if len(F):
+        P = surface_samples(Vn, F, points, seed=seed)
+    else:  # a point cloud: P of its points
+        rng = np.random.default_rng(seed)
+        if len(Vn) >= points:
+            P = Vn[np.sort(rng.choice(len(Vn), size=points, replace=False))]
+        else:
+            P = Vn[rng.integers(0, len(Vn), size=points)]
+    return np.ascontiguousarray(P, dtype=np.float32)
+
+
+def _is_hidden(name: str) -> bool:
+    return name.startswith(".")
+
+
+# --------------------------------------------------------------------------- discovery
+
+
+def find_meshes(root) -> list[pathlib.Path]:
+    """Mesh files under a folder, recursively, in a stable order.
+
+    Parameters
+    ----------
+    root : str or os.PathLike
+        A folder. Any layout works, ShapeNet's ``<synset>/<id>/model.obj`` and
+        ``<synset>/<id>/models/model_normalized.obj`` included.
+
+    Returns
+    -------
+    paths : list of pathlib.Path
+        ``root / relative`` for every regular file (or link to one) whose extension is in
+        :data:`MESH_EXTENSIONS` (case-insensitive), sorted by the relative path in POSIX
+        form. Hidden files and folders below ``root`` (names starting with ``.``, such as
+        the cache folder ``.cagekit-cache`` and temporary files of atomic writes) are
+        skipped. Links to folders are followed, each real folder once.
+
+    Raises
+    ------
+    InputError
+        ``root`` does not exist or is not a folder.
+
+    Examples
+    --------
+    >>> find_meshes("ShapeNetCore.v1/03001627")[:1]  # doctest: +SKIP
+    [PosixPath('ShapeNetCore.v1/03001627/1006be65e7bc937e9141f9b58470d646/model.obj')]
+    """
+    base = pathlib.Path(root)
+    if not base.is_dir():
+        what = "does not exist" if not base.exists() else "is not a folder"
+        raise InputError(f"{what}; a folder of meshes is required", base)
+    found: list[tuple[str, pathlib.Path]] = []
+    seen: set[str] = set()
+    for folder, dirs, files in os.walk(base, followlinks=True):
+        real = os.path.realpath(folder)
+        if real in seen:  # a link loop or a folder reached twice
+            dirs[:] = []
+            continue
+        seen.add(real)
+        dirs[:] = [d for d in dirs if not _is_hidden(d)]
+        for name in files:
+            if _is_hidden(name) or os.path.splitext(name)[1].lower() not in MESH_EXTENSIONS:
+                continue
+            path = pathlib.Path(folder, name)
+            if path.is_file():
+                found.append((path.relative_to(base).as_posix(), path))
+    found.sort(key=lambda item: item[0])
+    return [path for _, path in found]
+
+
+# -------------------------------------------------------------------------- collection
+
+
+class ShapeCollection:
+    """Normalised point samples of a collection of shapes.
+
+    Build one with :meth:`from_folder`, :meth:`synthetic` or :meth:`from_arrays`.
+
+    Attributes
+    ----------
+    names : list of str
+        One per shape: its path relative to the folder in POSIX form, or a synthetic name
+        such as ``"chairs/0007"``.
+    points : (N, P, 3) float32 ndarray
+        ``P`` samples of each shape, uniform by area on the surface of the shape normalised
+        on its own (bounding-box centre at the origin, largest half-extent 1), so every
+        point lies in ``[-1, 1]^3``.
+
+    Examples
+    --------
+    >>> c = ShapeCollection.from_arrays(["a", "b"], np.zeros((2, 8, 3)))
+    >>> len(c), c.points.dtype
+    (2, dtype('float32'))
+    """
+
+    def __init__(self, names, points):
+        names = [str(n) for n in names]
+        points = np.asarray(points)
+        if points.ndim != 3 or points.shape[2] != 3:
+            raise InputError(f"points must have shape (N, P, 3), got {points.shape}")
+        if not np.issubdtype(points.dtype, np.number) or np.iscomplexobj(points):
+            raise InputError(f"points must be real numbers, got dtype {points.dtype}")
+        points = np.ascontiguousarray(points, dtype=np.float32)
+        if len(names) != len(points):
+            raise InputError(f"{len(names)} names for {len(points)} shapes")
+        if len(set(names)) != len(names):
+            raise InputError("names must be unique")
+        if not np.isfinite(points).all():
+            raise InputError("points must be finite (no NaN or infinity)")
+        self.names: list[str] = names
+        self.points: np.ndarray = points
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+    def __repr__(self) -> str:
+        n, p = self.points.shape[:2]
+        return f"ShapeCollection({n} shapes x {p} points)"
+
+    # ------------------------------------------------------------------ constructors
+
+    @classmethod
+    def from_arrays(cls, names, points) -> ShapeCollection:
+        """A collection from given names and point samples (copied, as float32).
+
+        Parameters
+        ----------
+        names : sequence of str
+            ``N`` unique names.
+        points : (N, P, 3) array_like of float
+            Finite samples, assumed already normalised.
+
+        Returns
+        -------
+        ShapeCollection
+
+        Raises
+        ------
+        InputError
+            Wrong shape, non-finite values, a name count that differs from ``N``, or
+            duplicate names.
+
+        Examples
+        --------
+        >>> ShapeCollection.from_arrays(["a", "b", "c"], np.zeros((3, 16, 3))).points.shape
+        (3, 16, 3)
+        """
+        return cls(list(names), np.array(points, dtype=np.float32, copy=True))
+
+    @classmethod
+    def corresponding(cls, root, points=1024, seed=0) -> ShapeCollection:
+        """Samples in correspondence, for the L2 alignment loss (``--align l2``).
+
+        Every mesh under ``root`` must have the same vertex count (a collection with
+        consistent vertex order: poses of one character, morphs of one template). Each
+        is normalised on its own and the *same* seeded vertex indices are taken from
+        all, so point ``i`` of one shape corresponds to point ``i`` of every other
+        (vertices are drawn with replacement when there are fewer than ``points``).
+        Nothing is cached: reading vertices is cheap next to sampling surfaces.
+
+        Parameters
+        ----------
+        root : str or os.PathLike
+        points : int, default 1024
+        seed : int, default 0
+
+        Returns
+        -------
+        ShapeCollection
+
+        Raises
+        ------
+        InputError
+            No meshes, fewer than two, or vertex counts that differ (naming the file).
+        """
+        root = pathlib.Path(root)
+        paths = find_meshes(root)
+        if len(paths) < 2:
+            raise InputError(f"{root}: needs at least two meshes in correspondence, found "
+                             f"{len(paths)}")
+        shapes = [load_shape(path)[0] for path in paths]
+        n = len(shapes[0])
+        for path, V in zip(paths, shapes):
+            if len(V) != n:
+                raise InputError(f"{path}: {len(V)} vertices, but {paths[0].name} has {n}: "
+                                 "shapes in correspondence share one vertex order")
+        rng = np.random.default_rng([_TAG_CORRESPONDING, _count(seed, "seed")])
+        rows = (np.sort(rng.choice(n, size=points, replace=False)) if n >= points
+                else rng.integers(0, n, size=points))
+        names = [path.relative_to(root).as_posix() for path in paths]
+        return cls(names, np.stack([normalize(V)[0][rows] for V in shapes]).astype(np.float32))
+
+    @classmethod
+    def synthetic(cls, family="chairs", n=32, seed=0, points=1024,
+                  resolution=1.0) -> ShapeCollection:
+        """Built-in data: shapes of a procedural family, normalised and sampled.
+
+        Parameters
+        ----------
+        family : {"chairs", "tables", "vases"}
+            A family of :mod:`cagekit.datasets.synthetic`.
+        n : int, default 32
+            Number of shapes; shape ``i`` is the family's shape of seed ``seed + i``.
+        seed : int, default 0
+            Seed of the first shape and of the sampling (>= 0).
+        points : int, default 1024
+            Samples per shape (>= 1).
+        resolution : float, default 1.0
+            Mesh resolution passed to the family (about ``4500 * resolution**2`` vertices).
+
+        Returns
+        -------
+        ShapeCollection
+            Names ``f"{family}/{i:04d}"``; samples drawn as in :meth:`from_folder`.
+
+        Raises
+        ------
+        InputError
+            Unknown family or bad counts.
+
+        Examples
+        --------
+        >>> c = ShapeCollection.synthetic("vases", n=2, points=64, resolution=0.5)
+        >>> c.names, c.points.shape
+        (['vases/0000', 'vases/0001'], (2, 64, 3))
+        """
+        if family not in _synthetic.FAMILIES:
+            raise InputError(f"unknown family {family!r}; available: "
+                             f"{', '.join(_synthetic.FAMILIES)}")
+        n = _count(n, "n")
+        seed = _count(seed, "seed")
+        points = _count(points, "points", 1)
+        names, samples = [], []
+        for i, (V, F) in enumerate(_synthetic.family(family, n, seed=seed,
+                                                     resolution=resolution)):
+            name = f"{family}/{i:04d}"
+            names.append(name)
+            samples.append(_sample_shape(V, F, points, _shape_seed(seed, name)))
+        stack = np.stack(samples) if samples else np.empty((0, points, 3), np.float32)
+        return cls(names, stack)
+
+    @classmethod
+    def from_folder(cls, root, points=1024, seed=0, cache_dir=None,
+                    progress=False) -> ShapeCollection:
+        """Every mesh under a folder, normalised and sampled, with an incremental cache.
+
+        Parameters
+        ----------
+        root : str or os.PathLike
+            A folder of meshes in any layout (see :func:`find_meshes`), ShapeNet's
+            included.
+        points : int, default 1024
+            Samples per shape (>= 1).
+        seed : int, default 0
+            Sampling seed (>= 0). A shape's samples depend only on ``(seed, name)``.
+        cache_dir : str or os.PathLike or False, optional
+            Where ``samples.npz`` and ``manifest.json`` are kept. Default
+            ``<root>/.cagekit-cache``; when that cannot be written the collection is
+            built without a cache and a warning says so. A folder given here is created
+            if needed and must be writable. ``False`` turns the cache off.
+        progress : bool, default False
+            Show a tqdm progress bar over the files being sampled.
+
+        Returns
+        -------
+        ShapeCollection
+            Shapes in :func:`find_meshes` order, named by their relative POSIX paths; files
+            that could not be used are left out.
+
+        Raises
+        ------
+        InputError
+            ``root`` is not a folder, holds no mesh file, or fewer than 2 shapes could be
+            used; ``cache_dir`` was given and cannot be written.
+
+        Warns
+        -----
+        UserWarning
+            For each file skipped (naming the file and the problem; files a cache
+            remembers as broken are warned about again without being read), and when the
+            default cache cannot be written.
+
+        Notes
+        -----
+        The manifest holds the format version, ``points``, ``seed``, and for each used
+        file its ``name``, ``size`` (bytes) and ``mtime_ns``; skipped files are listed
+        under ``"skipped"`` with their ``problem``. On the next call a file with the same
+        name, size and ``mtime_ns`` is taken from the cache without being read; changed or
+        new files are (re)sampled and removed ones dropped. Another ``points`` or
+        ``seed`` resamples everything.
+
+        Examples
+        --------
+        >>> c = ShapeCollection.from_folder("ShapeNetCore.v2/03001627")  # doctest: +SKIP
+        >>> c.names[0]  # doctest: +SKIP
+        '1006be65e7bc937e9141f9b58470d646/models/model_normalized.obj'
+        """
+        points = _count(points, "points", 1)
+        seed = _count(seed, "seed")
+        base = pathlib.Path(root)
+        paths = find_meshes(base)
+        if not paths:
+            raise InputError("holds no mesh file (looked for "
+                             f"{', '.join(MESH_EXTENSIONS)}, hidden folders skipped)", base)
+
+        explicit = cache_dir is not None and cache_dir is not False
+        cache = None
+        if cache_dir is not False:
+            cache = pathlib.Path(cache_dir) if explicit else base / CACHE_DIRNAME
+            if explicit:
+                try:
+                    cache.mkdir(parents=True, exist_ok=True)
+                except OSError as exc:
+                    raise InputError(f"cannot create the cache folder: "
+                                     f"{exc.strerror or exc}", cache) from None
+                if not os.access(cache, os.W_OK | os.X_OK):
+                    raise InputError("cache folder is not writable", cache)
+
+        old = _read_cache(cache, points, seed) if cache is not None else None
+        old_files = old["files"] if old else {}
+        old_skipped = old["skipped"] if old else {}
+
+        entries, skipped = [], []  # entries: (name, size, mtime_ns, samples or None)
+        todo: list[tuple[int, pathlib.Path]] = []
+        for path in paths:
+            name = path.relative_to(base).as_posix()
+            try:
+                st = path.stat()
+            except OSError as exc:
+                problem = f"cannot read: {exc.strerror or exc}"
+                warnings.warn(f"skipping {path}: {problem}", stacklevel=2)
+                skipped.append({"name": name, "size": -1, "mtime_ns": -1,
+                                "problem": problem})
+                continue
+            key = (st.st_size, st.st_mtime_ns)
+            if name in old_files and old_files[name][0] == key:
+                entries.append([name, *key, old_files[name][1]])
+            elif name in old_skipped and old_skipped[name][0] == key:
+                problem = old_skipped[name][1]
+                warnings.warn(f"skipping {path}: {problem} (remembered by the cache)",
+                              stacklevel=2)
+                skipped.append({"name": name, "size": key[0], "mtime_ns": key[1],
+                                "problem": problem})
+            else:
+                todo.append((len(entries), path))
+                entries.append([name, *key, None])
+
+        bar = None
+        if progress and todo:
+            from tqdm.auto import tqdm
+            bar = tqdm(total=len(todo), desc="sampling shapes", unit="shape")
+        failed = set()
+        try:
+            for index, path in todo:
+                name = entries[index][0]
+                try:
+                    V, F = load_shape(path)
+                    entries[index][3] = _sample_shape(V, F, points, _shape_seed(seed, name))
+                except InputError as exc:
+                    warnings.warn(f"skipping {path}: {exc.problem}", stacklevel=2)
+                    skipped.append({"name": name, "size": entries[index][1],
+                                    "mtime_ns": entries[index][2], "problem": exc.problem})
+                    failed.add(index)
+                if bar is not None:
+                    bar.update(1)
+        finally:
+            if bar is not None:
+                bar.close()
+        entries = [e for i, e in enumerate(entries) if i not in failed]
+        skipped.sort(key=lambda s: s["name"])
+
+        names = [e[0] for e in entries]
+        stack = (np.stack([e[3] for e in entries]) if entries
+                 else np.empty((0, points, 3), np.float32))
+        if cache is not None:
+            manifest = {
+                "format": CACHE_FORMAT,
+                "points": points,
+                "seed": seed,
+                "files": [{"name": e[0], "size": e[1], "mtime_ns": e[2]} for e in entries],
+                "skipped": skipped,
+            }
+            if old is None or old["manifest"] != manifest:
+                _write_cache(cache, manifest, names, stack, explicit)
+        if len(entries) < 2:
+            raise InputError(f"only {len(entries)} usable shape(s) of {len(paths)} mesh "
+                             "file(s); at least 2 are needed to make pairs", base)
+        return cls(names, stack)
+
+    # ------------------------------------------------------------------------ split
+
+    def split(self, n_test: int, seed=0) -> tuple[ShapeCollection, ShapeCollection]:
+        """A deterministic held-out split.
+
+        Parameters
+        ----------
+        n_test : int
+            Number of shapes held out, ``0 <= n_test <= len(self)``.
+        seed : int, default 0
+            Seed of the split (>= 0).
+
+        Returns
+        -------
+        train, test : ShapeCollection
+            ``len(self) - n_test`` and ``n_test`` shapes, each in the collection's order.
+            The held-out shapes are those with the smallest seeded hash of their name, so
+            the split depends on ``(seed, names)`` only, not on the order of the shapes,
+            and adding shapes moves few of the others.
+
+        Examples
+        --------
+        >>> c = ShapeCollection.from_arrays(list("abcde"), np.zeros((5, 4, 3)))
+        >>> train, test = c.split(2)
+        >>> len(train), len(test), sorted(train.names + test.names) == list("abcde")
+        (3, 2, True)
+        """
+        n_test = _count(n_test, "n_test")
+        seed = _count(seed, "seed")
+        if n_test > len(self):
+            raise InputError(f"n_test must be at most the number of shapes ({len(self)}), "
+                             f"got {n_test}")
+        keys = [np.random.SeedSequence([_TAG_SPLIT, seed, zlib.crc32(n.encode("utf-8"))])
+                .generate_state(2, dtype=np.uint32).tolist() + [n] for n in self.names]
+        order = sorted(range(len(self)), key=lambda i: keys[i])
+        test = np.zeros(len(self), dtype=bool)
+        test[order[:n_test]] = True
+        pick = np.flatnonzero
+        return (
+            type(self)([self.names[i] for i in pick(~test)], self.points[~test]),
+            type(self)([self.names[i] for i in pick(test)], self.points[test]),
+        )
+
+
+# ------------------------------------------------------------------------------- cache
+
+
+def _read_cache(cache: pathlib.Path, points: int, seed: int):
+    """The cache's entries when it is valid for ``(points, seed)``, else None."""
+    manifest_path, samples_path = cache / _MANIFEST_FILE, cache / _SAMPLES_FILE
+    if not manifest_path.is_file():
+        return None
+    try:
+        with open(manifest_path, encoding="utf-8") as f:
+            manifest = json.load(f)
+        if (manifest.get("format") != CACHE_FORMAT or manifest.get("points") != points
+                or manifest.get("seed") != seed):
+            return None
+        with np.load(samples_path, allow_pickle=False) as npz:
+            token = str(npz["token"])
+            names = [str(n) for n in npz["names"]]
+            stack = np.asarray(npz["points"], dtype=np.float32)
+        files = manifest["files"]
+        if (token != manifest["token"] or names != [f["name"] for f in files]
+                or stack.shape != (len(files), points, 3)):
+            return None
+        token = manifest.pop("token")
+        return {
+            "manifest": manifest,
+            "files": {f["name"]: ((int(f["size"]), int(f["mtime_ns"])), stack[i])
+                      for i, f in enumerate(files)},
+            "skipped": {s["name"]: ((int(s["size"]), int(s["mtime_ns"])), str(s["problem"]))
+                        for s in manifest.get("skipped", [])},
+        }
+    except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
+        warnings.warn(f"ignoring the unreadable cache in {cache} ({type(exc).__name__}: "
+                      f"{exc}); it will be rebuilt", stacklevel=3)
+        return None
+
+
+def _write_cache(cache: pathlib.Path, manifest: dict, names, stack, explicit: bool) -> None:
+    """Write samples then manifest atomically; warn (default cache) or raise (explicit)."""
+    token = secrets.token_hex(8)
+    try:
+        cache.mkdir(parents=True, exist_ok=True)
+        with atomic_output(cache / _SAMPLES_FILE) as tmp, open(tmp, "wb") as f:
+            np.savez(f, token=np.array(token), names=np.array(names, dtype=str),
+                     points=stack)
+        with atomic_output(cache / _MANIFEST_FILE) as tmp, open(tmp, "w",
+                                                                encoding="utf-8") as f:
+            json.dump({**manifest, "token": token}, f, indent=1)
+            f.write("\n")
+    except (OSError, InputError) as exc:
+        problem = getattr(exc, "problem", None) or getattr(exc, "strerror", None) or str(exc)
+        if explicit:
+            raise InputError(f"cannot write the cache: {problem}", cache) from None
+        warnings.warn(f"not caching samples: cannot write {cache} ({problem})", stacklevel=3)
+
+
+# ------------------------------------------------------------------------------- pairs
+
+
+def epoch_pairs(n_shapes: int, epoch: int, seed: int = 0) -> np.ndarray:
+    """The (source, target) pairs of one epoch.
+
+    Parameters
+    ----------
+    n_shapes : int
+        Number of shapes, >= 2.
+    epoch : int
+        Epoch number (>= 0).
+    seed : int, default 0
+        Seed (>= 0).
+
+    Returns
+    -------
+    pairs : (n_shapes, 2) int64 ndarray
+        Column 0 is a seeded permutation of ``range(n_shapes)`` (every shape is a source
+        once); column 1 a target drawn uniformly among the other shapes. Deterministic in
+        ``(n_shapes, epoch, seed)``; different epochs give different pairs.
+
+    Examples
+    --------
+    >>> p = epoch_pairs(5, epoch=0)
+    >>> sorted(p[:, 0].tolist()), bool((p[:, 0] != p[:, 1]).all())
+    ([0, 1, 2, 3, 4], True)
+    """
+    n = _count(n_shapes, "n_shapes", 2)
+    rng = np.random.default_rng([_TAG_PAIRS, _count(seed, "seed"), _count(epoch, "epoch")])
+    sources = rng.permutation(n).astype(np.int64)
+    targets = (sources + rng.integers(1, n, size=n)) % n
+    return np.stack([sources, targets], axis=1).astype(np.int64)
+
+
+def shard(pairs, rank: int, world_size: int) -> np.ndarray:
+    """One rank's share of the pairs for DistributedDataParallel.
+
+    Parameters
+    ----------
+    pairs : (n, 2) array_like of int
+        The epoch's pairs, the same on every rank (:func:`epoch_pairs`).
+    rank : int
+        This process's rank, ``0 <= rank < world_size``.
+    world_size : int
+        Number of processes, >= 1.
+
+    Returns
+    -------
+    (n // world_size, 2) int64 ndarray
+        ``pairs`` truncated to a multiple of ``world_size`` (so every rank runs the same
+        number of steps), then every ``world_size``-th row from ``rank``. The shares of the
+        ranks are disjoint and together make the truncated pairs.
+
+    Raises
+    ------
+    InputError
+        Bad rank or world size, or fewer pairs than ranks.
+
+    Examples
+    --------
+    >>> shard(np.arange(10).reshape(5, 2), rank=1, world_size=2).tolist()
+    [[2, 3], [6, 7]]
+    """
+    pairs = np.asarray(pairs)
+    if pairs.ndim != 2 or pairs.shape[1] != 2 or not np.issubdtype(pairs.dtype, np.integer):
+        raise InputError(f"pairs must be an (n, 2) integer array, got {pairs.dtype} "
+                         f"{pairs.shape}")
+    world_size = _count(world_size, "world_size", 1)
+    rank = _count(rank, "rank")
+    if rank >= world_size:
+        raise InputError(f"rank must be below world_size ({world_size}), got {rank}")
+    if len(pairs) < world_size:
+        raise InputError(f"{len(pairs)} pairs cannot be shared by {world_size} ranks")
+    used = len(pairs) // world_size * world_size
+    return np.ascontiguousarray(pairs[:used][rank::world_size], dtype=np.int64)
+
+
+# ------------------------------------------------------------------------ augmentation
+
+
+def augment(points, rng, low=0.75, high=1.25) -> np.ndarray:
+    """The paper's augmentation: scale each axis at random, then re-normalise.
+
+    Parameters
+    ----------
+    points : (P, 3) array_like of float
+        A shape's samples (not all equal).
+    rng : numpy.random.Generator or int
+        Source of the three scale factors (an int seeds a new Generator).
+    low, high : float, default 0.75 and 1.25
+        The factors are uniform in ``[low, high]``, ``0 < low <= high``.
+
+    Returns
+    -------
+    (P, 3) float32 ndarray
+        The scaled points with their bounding-box centre at the origin and largest
+        half-extent 1.
+
+    Examples
+    --------
+    >>> P = augment(np.random.default_rng(0).random((100, 3)), np.random.default_rng(1))
+    >>> P.dtype, float(np.abs(P).max())
+    (dtype('float32'), 1.0)
+    """
+    low, high = float(low), float(high)
+    if not (np.isfinite(low) and np.isfinite(high) and 0.0 < low <= high):
+        raise InputError(f"need 0 < low <= high, got low={low}, high={high}")
+    rng = np.random.default_rng(rng)
+    scale = rng.uniform(low, high, size=3)
+    return normalize(np.asarray(points, dtype=np.float64) * scale)[0].astype(np.float32)
+
+
+def make_batch(collection, pairs, *, epoch, step, seed=0, augmentation=True,
+               dtype=None) -> dict:
+    """Tensors of one training step.
+
+    Parameters
+    ----------
+    collection : ShapeCollection or (N, P, 3) array_like
+        The shapes.
+    pairs : (b, 2) array_like of int
+        Rows of (source index, target index) into ``collection``.
+    epoch, step : int
+        Position of the batch in training (>= 0); with ``seed`` they fix the augmentation.
+    seed : int, default 0
+        Seed (>= 0).
+    augmentation : bool, default True
+        Apply :func:`augment` to every source and, independently, every target.
+    dtype : torch.dtype, optional
+        Of the point tensors; default ``torch.float32``.
+
+    Returns
+    -------
+    dict
+        ``"source"``, ``"target"``: (b, P, 3) tensors of ``dtype``; ``"source_index"``,
+        ``"target_index"``: (b,) ``torch.long`` tensors. Row ``i`` is augmented with a
+        Generator seeded from ``(seed, epoch, step, i, source index, target index)``, so
+        the same arguments give the same batch (a resumed run reproduces it) and ranks of
+        a distributed run draw different factors.
+
+    Examples
+    --------
+    >>> c = ShapeCollection.synthetic("vases", n=3, points=32, resolution=0.5)
+    >>> b = make_batch(c, [[0, 1], [2, 0]], epoch=0, step=0)  # doctest: +SKIP
+    >>> b["source"].shape, b["target_index"].tolist()  # doctest: +SKIP
+    (torch.Size([2, 32, 3]), [1, 0])
+    """
+    import torch
+
+    data = collection.points if isinstance(collection, ShapeCollection) else np.asarray(
+        collection, dtype=np.float32)
+    if data.ndim != 3 or data.shape[2] != 3:
+        raise InputError(f"collection points must have shape (N, P, 3), got {data.shape}")
+    pairs = np.asarray(pairs)
+    if pairs.ndim != 2 or pairs.shape[1] != 2 or not np.issubdtype(pairs.dtype, np.integer):
+        raise InputError(f"pairs must be a (b, 2) integer array, got {pairs.dtype} "
+                         f"{pairs.shape}")
+    if len(pairs) and (pairs.min() < 0 or pairs.max() >= len(data)):
+        raise InputError(f"pair indices must lie in [0, {len(data)}), got "
+                         f"{pairs.min()}..{pairs.max()}")
+    seed, epoch, step = _count(seed, "seed"), _count(epoch, "epoch"), _count(step, "step")
+    pairs = pairs.astype(np.int64)
+    source = data[pairs[:, 0]]
+    target = data[pairs[:, 1]]
+    if augmentation:
+        source = source.copy()
+        target = target.copy()
+        for i, (s, t) in enumerate(pairs.tolist()):
+            rng = np.random.default_rng([_TAG_AUGMENT, seed, epoch, step, i, s, t])
+            source[i] = augment(source[i], rng)
+            target[i] = augment(target[i], rng)
+    dtype = torch.float32 if dtype is None else dtype
+    return {
+        "source": torch.from_numpy(np.ascontiguousarray(source)).to(dtype),
+        "target": torch.from_numpy(np.ascontiguousarray(target)).to(dtype),
+        "source_index": torch.from_numpy(pairs[:, 0].copy()),
+        "target_index": torch.from_numpy(pairs[:, 1].copy()),
+    }

@@ -1,0 +1,246 @@
+"""The networks of "Neural Cages" (section 3.2): a shared PointNet encoder, N_c and N_d.
+
+Given a source and a target point cloud (each normalised on its own, ``(B, P, 3)``):
+
+- the **encoder** (shared by everything) maps a cloud to a code of ``bottleneck`` numbers:
+  1-D convolutions 3 -> 64 -> 128 -> ``bottleneck`` with ReLU between them, then a max-pool
+  over the points (no batch normalisation, so a batch of one behaves like any other);
+- **N_c** predicts the source cage: the template cage (the 42-vertex icosphere of
+  :func:`cagekit.template_cage`, scaled by ``template_radius``) plus offsets decoded, per
+  template vertex, from the template vertex's position and the source code (an
+  AtlasNet-style decoder: a shared MLP over the concatenation ``[vertex, code]``);
+- **N_d** predicts the deformed cage: the source cage plus offsets decoded per source-cage
+  vertex from ``[cage vertex, source code, target code]``.
+
+Decisions (ours, where the paper is silent)
+-------------------------------------------
+- The decoders' last layer starts at zero, so an untrained model predicts the template
+  as the source cage and leaves it where it is: training starts from a valid cage.
+- ``box_align=True`` (default) adds a fixed, non-learned step before N_d's offsets: the
+  source cage is stretched per axis by the ratio of the target's to the source's
+  bounding-box half-extents (measured on the input clouds), the scaling baseline of the
+  benchmarks. N_d then learns only what the boxes do not explain. ``box_align=False`` is
+  the paper's plain offsets.
+- ``template_radius`` defaults to 1.5: a normalised shape fits ``[-1, 1]^3``; a radius
+  of 1.5 encloses most shapes (a chair's corners lie at about 1.2) without wasting the
+  cage's resolution on empty space. L_MVC pushes the cage out where it does not enclose.
+- N_c variants (the paper's ablation): ``learned`` (above), ``identity`` (the template
+  itself, nothing learned), ``source-invariant`` (the template plus one learned offset
+  per vertex, the same for every source). ``fixed_cage`` replaces N_c by a given cage,
+  for a collection that shares one source (a template character).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+import torch
+from torch import nn
+
+__all__ = ["ModelConfig", "PointNetEncoder", "VertexDecoder", "NeuralCages", "NC_VARIANTS"]
+
+NC_VARIANTS = ("learned", "identity", "source-invariant")
+
+
+@dataclass
+class ModelConfig:
+    """Everything that defines a :class:`NeuralCages` model (stored in checkpoints).
+
+    Attributes
+    ----------
+    bottleneck : int
+        Size of the PointNet code.
+    nc : {"learned", "identity", "source-invariant"}
+        The N_c variant.
+    template_radius : float
+        Radius of the template icosphere (normalised frame).
+    box_align : bool
+        Stretch the source cage onto the target's bounding box before N_d's offsets.
+    decoder_widths : list of int
+        Hidden widths of the two decoders' MLPs.
+    fixed_cage_v, fixed_cage_f : list or None
+        A fixed source cage (nested lists), replacing N_c.
+    """
+
+    bottleneck: int = 256
+    nc: str = "learned"
+    template_radius: float = 1.5
+    box_align: bool = True
+    decoder_widths: list = field(default_factory=lambda: [256, 128, 64])
+    fixed_cage_v: list | None = None
+    fixed_cage_f: list | None = None
+
+    def to_dict(self) -> dict:
+        """Plain Python values only (so a checkpoint loads with ``weights_only=True``)."""
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, values: dict) -> ModelConfig:
+        known = {k: v for k, v in values.items() if k in cls.__dataclass_fields__}
+        return cls(**known)
+
+
+class PointNetEncoder(nn.Module):
+    """Per-point 1-D convolutions 3 -> 64 -> 128 -> ``bottleneck`` and a max-pool.
+
+    Parameters
+    ----------
+    bottleneck : int, default 256
+
+    Examples
+    --------
+    >>> enc = PointNetEncoder(32)
+    >>> enc(torch.zeros(2, 100, 3)).shape
+    torch.Size([2, 32])
+    """
+
+    def __init__(self, bottleneck: int = 256):
+        super().__init__()
+        self.layers = nn.Sequential(
+            nn.Conv1d(3, 64, 1), nn.ReLU(),
+            nn.Conv1d(64, 128, 1), nn.ReLU(),
+            nn.Conv1d(128, bottleneck, 1),
+        )
+
+    def forward(self, points: torch.Tensor) -> torch.Tensor:
+        """(B, P, 3) points -> (B, bottleneck) codes."""
+        return self.layers(points.transpose(1, 2)).amax(dim=2)
+
+
+class VertexDecoder(nn.Module):
+    """An AtlasNet-style decoder: one MLP applied to every ``[vertex, code]`` row.
+
+    Parameters
+    ----------
+    code_size : int
+        Length of the code appended to each vertex.
+    widths : sequence of int
+        Hidden widths.
+
+    Examples
+    --------
+    >>> dec = VertexDecoder(8, [16])
+    >>> dec(torch.zeros(2, 5, 3), torch.zeros(2, 8)).abs().max().item()  # starts at zero
+    0.0
+    """
+
+    def __init__(self, code_size: int, widths=(256, 128, 64)):
+        super().__init__()
+        layers, size = [], 3 + code_size
+        for width in widths:
+            layers += [nn.Conv1d(size, width, 1), nn.ReLU()]
+            size = width
+        last = nn.Conv1d(size, 3, 1)
+        nn.init.zeros_(last.weight)
+        nn.init.zeros_(last.bias)
+        self.layers = nn.Sequential(*layers, last)
+
+    def forward(self, vertices: torch.Tensor, code: torch.Tensor) -> torch.Tensor:
+        """(B, k, 3) vertices and (B, c) codes -> (B, k, 3) offsets."""
+        rows = torch.cat([vertices, code[:, None, :].expand(-1, vertices.shape[1], -1)], dim=2)
+        return self.layers(rows.transpose(1, 2)).transpose(1, 2)
+
+
+def half_extents(points: torch.Tensor) -> torch.Tensor:
+    """(B, P, 3) -> (B, 3) half the bounding box's size per axis."""
+    return 0.5 * (points.amax(dim=1) - points.amin(dim=1))
+
+
+def box_ratio(source: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """Per-axis ratio of the target's to the source's half-extents, (B, 3), no gradient.
+
+    An axis on which either cloud is flat (below 1e-6 of its largest half-extent) keeps 1.
+    """
+    with torch.no_grad():
+        hs, ht = half_extents(source), half_extents(target)
+        flat = (hs < 1e-6 * hs.amax(dim=1, keepdim=True)) | (
+            ht < 1e-6 * ht.amax(dim=1, keepdim=True))
+        return torch.where(flat, torch.ones_like(hs), ht / torch.where(flat, 1.0, hs))
+
+
+class NeuralCages(nn.Module):
+    """N_c and N_d with a shared encoder.
+
+    Parameters
+    ----------
+    config : ModelConfig, optional
+
+    Attributes
+    ----------
+    cage_f : (m, 3) int64 buffer
+        The faces of every predicted cage (the template's, or the fixed cage's).
+    template : (k, 3) buffer
+        The template cage's vertices (N_c's starting point).
+
+    Examples
+    --------
+    >>> model = NeuralCages(ModelConfig(bottleneck=16))
+    >>> out = model(torch.rand(2, 64, 3) - 0.5, torch.rand(2, 64, 3) - 0.5)
+    >>> out["source_cage"].shape, out["deformed_cage"].shape
+    (torch.Size([2, 42, 3]), torch.Size([2, 42, 3]))
+    """
+
+    def __init__(self, config: ModelConfig | None = None):
+        super().__init__()
+        from cagekit.fitting import template_cage
+
+        self.config = config = config or ModelConfig()
+        if config.nc not in NC_VARIANTS:
+            raise ValueError(f"nc must be one of {', '.join(NC_VARIANTS)}, got {config.nc!r}")
+        if config.fixed_cage_v is not None:
+            v = np.asarray(config.fixed_cage_v, dtype=np.float64)
+            f = np.asarray(config.fixed_cage_f, dtype=np.int64)
+        else:
+            v, f = template_cage()
+            v = v * config.template_radius
+        self.register_buffer("template", torch.as_tensor(v, dtype=torch.float32))
+        self.register_buffer("cage_f", torch.as_tensor(f, dtype=torch.int64))
+        self.encoder = PointNetEncoder(config.bottleneck)
+        widths = list(config.decoder_widths)
+        self.nc_decoder = None
+        self.nc_offsets = None
+        if config.fixed_cage_v is None and config.nc == "learned":
+            self.nc_decoder = VertexDecoder(config.bottleneck, widths)
+        elif config.fixed_cage_v is None and config.nc == "source-invariant":
+            self.nc_offsets = nn.Parameter(torch.zeros_like(self.template))
+        self.nd_decoder = VertexDecoder(2 * config.bottleneck, widths)
+
+    def nc_parameters(self) -> list:
+        """N_c's own parameters (trained at a tenth of the learning rate)."""
+        if self.nc_decoder is not None:
+            return list(self.nc_decoder.parameters())
+        return [self.nc_offsets] if self.nc_offsets is not None else []
+
+    def source_cage(self, source: torch.Tensor, code: torch.Tensor | None = None
+                    ) -> torch.Tensor:
+        """N_c: (B, P, 3) source clouds -> (B, k, 3) source cages."""
+        batch = source.shape[0]
+        template = self.template.to(source.dtype).expand(batch, -1, -1)
+        if self.nc_decoder is not None:
+            code = self.encoder(source) if code is None else code
+            return template + self.nc_decoder(template, code)
+        if self.nc_offsets is not None:
+            return template + self.nc_offsets.to(source.dtype)
+        return template
+
+    def forward(self, source: torch.Tensor, target: torch.Tensor) -> dict:
+        """Predict the source cage and its deformation.
+
+        Parameters
+        ----------
+        source, target : (B, P, 3) float tensors
+            Point clouds, each normalised on its own (the paper's frame).
+
+        Returns
+        -------
+        dict
+            ``source_cage`` (B, k, 3) and ``deformed_cage`` (B, k, 3), in the source's and
+            the target's normalised frames; the faces are :attr:`cage_f`.
+        """
+        code_s = self.encoder(source)
+        code_t = self.encoder(target)
+        cage = self.source_cage(source, code_s)
+        start = cage * box_ratio(source, target)[:, None, :] if self.config.box_align else cage
+        offsets = self.nd_decoder(start, torch.cat([code_s, code_t], dim=1))
+        return {"source_cage": cage, "deformed_cage": start + offsets}

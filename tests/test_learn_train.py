@@ -1,0 +1,231 @@
+"""Training: the loss falls, bad steps are skipped, checkpoints are safe, runs resume
+exactly after a kill, and two torchrun processes stay identical."""
+
+import csv
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+
+from cagekit.errors import InputError  # noqa: E402
+from cagekit_learn import losses  # noqa: E402
+from cagekit_learn.checkpoint import load_checkpoint, save_checkpoint  # noqa: E402
+from cagekit_learn.data import ShapeCollection  # noqa: E402
+from cagekit_learn.train import TrainConfig, load_model, train, training_loss  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+TINY_MODEL = {"bottleneck": 16, "decoder_widths": [32, 32]}
+# a small, quick run: 6 synthetic vases, 128 points each
+TINY_ARGS = ["synthetic:vases:6", "--points", "128", "--bottleneck", "16", "--batch-size",
+             "2", "--seed", "3"]
+
+
+@pytest.fixture(scope="module")
+def vases():
+    return ShapeCollection.synthetic("vases", n=6, seed=3, points=128)
+
+
+def _config(tmp_path, **overrides):
+    values = {"data": "synthetic:vases:6", "run_dir": str(tmp_path / "run"), "points": 128,
+              "batch_size": 2, "seed": 3, "model": TINY_MODEL, "checkpoint_every": 5}
+    return TrainConfig(**{**values, **overrides})
+
+
+def _env():
+    env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONHASHSEED="0")
+    env.pop("CAGEKIT_DEBUG", None)
+    return env
+
+
+def _states_equal(a, b):
+    return a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+
+
+def test_a_tiny_training_run_lowers_the_loss(tmp_path, vases):
+    # two shapes, so every step sees the same two pairs and the loss can be compared
+    # across steps; without the box alignment the untrained model leaves the cage where
+    # it is, so everything the loss loses is learned
+    two = ShapeCollection.from_arrays(vases.names[:2], vases.points[:2])
+    config = _config(tmp_path, epochs=40, augment=False, lr=3e-3,
+                     model={**TINY_MODEL, "box_align": False})
+    result = train(config, progress=False, collection=two)
+    with open(tmp_path / "run" / "log.csv", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) == result.step == 40
+    first = np.mean([float(r["loss"]) for r in rows[:3]])
+    last = np.mean([float(r["loss"]) for r in rows[-3:]])
+    assert last < 0.75 * first
+    assert {"align", "mvc", "p2f", "normal"} <= {k for k, v in rows[0].items() if v != ""}
+    assert result.skipped == 0 and result.pairs_per_second > 0
+
+
+def test_training_loss_terms_and_gradients_reach_every_network(tmp_path, vases):
+    from cagekit_learn.data import make_batch
+    from cagekit_learn.networks import ModelConfig, NeuralCages
+
+    torch.manual_seed(0)
+    net = NeuralCages(ModelConfig(**TINY_MODEL))
+    for p in net.parameters():
+        torch.nn.init.normal_(p, std=0.05)
+    batch = make_batch(vases, np.array([[0, 1], [2, 3]]), epoch=0, step=0)
+    config = _config(tmp_path, symmetry="x")
+    total, terms = training_loss(net, batch["source"], batch["target"], config)
+    assert set(terms) == {"align", "mvc", "p2f", "normal", "symmetry"}
+    expected = (terms["align"] + terms["mvc"] + 0.1 * (terms["p2f"] + terms["normal"])
+                + terms["symmetry"])
+    assert float(total.detach()) == pytest.approx(expected, rel=1e-5)
+    total.backward()
+    for name, p in net.named_parameters():
+        assert p.grad is not None and torch.isfinite(p.grad).all(), name
+    assert net.nc_decoder.layers[0].weight.grad.abs().sum() > 0  # L_MVC and align reach N_c
+
+
+def test_nan_steps_are_skipped_and_counted(tmp_path, vases, monkeypatch):
+    real = losses.chamfer_loss
+    calls = {"n": 0}
+
+    def sometimes_nan(P, Q):
+        calls["n"] += 1
+        value = real(P, Q)
+        return value * float("nan") if calls["n"] in (2, 3) else value
+
+    monkeypatch.setattr(losses, "chamfer_loss", sometimes_nan)
+    result = train(_config(tmp_path, epochs=2), progress=False, collection=vases)
+    assert result.skipped == 2
+    assert all(torch.isfinite(p).all() for p in result.model.parameters())
+    payload = load_checkpoint(tmp_path / "run")
+    assert payload["skipped"] == 2 and payload["step"] == 6
+
+
+def test_checkpoint_holds_the_config_and_loads_without_running_code(tmp_path, vases):
+    train(_config(tmp_path, max_steps=3), progress=False, collection=vases)
+    payload = load_checkpoint(tmp_path / "run" / "checkpoint.pt")
+    assert payload["config"]["batch_size"] == 2 and payload["step"] == 3
+    assert payload["model_config"]["bottleneck"] == 16
+    model, _ = load_model(tmp_path / "run")
+    assert not model.training
+
+    marker = tmp_path / "pwned"
+
+    class Evil:
+        def __reduce__(self):
+            return (Path.touch, (marker,))
+
+    torch.save({"format": 1, "model": Evil()}, tmp_path / "evil.pt")
+    with pytest.raises(InputError, match="not a readable checkpoint"):
+        load_checkpoint(tmp_path / "evil.pt")
+    assert not marker.exists()
+    (tmp_path / "junk.pt").write_bytes(b"not a checkpoint")
+    with pytest.raises(InputError, match="junk.pt"):
+        load_checkpoint(tmp_path / "junk.pt")
+    with pytest.raises(InputError, match="no such checkpoint"):
+        load_checkpoint(tmp_path / "missing.pt")
+
+
+def test_checkpoints_are_written_atomically(tmp_path, monkeypatch):
+    path = tmp_path / "checkpoint.pt"
+    save_checkpoint(path, {"model": {"w": torch.ones(2)}, "step": 1})
+
+    def crash(*args, **kwargs):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(torch, "save", crash)
+    with pytest.raises(OSError):
+        save_checkpoint(path, {"model": {"w": torch.zeros(2)}, "step": 2})
+    assert load_checkpoint(path)["step"] == 1
+    assert [p.name for p in tmp_path.iterdir()] == ["checkpoint.pt"]
+
+
+def _train_command(run_dir, *extra):
+    return [sys.executable, "-m", "cagekit_learn.train", *TINY_ARGS, "-o", str(run_dir),
+            "--checkpoint-every", "1", *extra]
+
+
+def test_resume_after_a_kill_gives_the_weights_of_an_uninterrupted_run(tmp_path):
+    steps = ["--max-steps", "150"]
+    killed = tmp_path / "killed"
+    proc = subprocess.Popen(_train_command(killed, *steps), env=_env(), cwd=ROOT,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    log = killed / "log.csv"
+    deadline = time.time() + 120
+    while time.time() < deadline and proc.poll() is None:
+        if log.exists() and len(log.read_text().splitlines()) > 8:
+            break
+        time.sleep(0.02)
+    assert proc.poll() is None, "the run ended before it could be killed"
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    stopped = load_checkpoint(killed)["step"]
+    assert 0 < stopped < 150
+    subprocess.run(_train_command(killed, *steps, "--resume"), env=_env(), cwd=ROOT,
+                   check=True, capture_output=True)
+    whole = tmp_path / "whole"
+    subprocess.run(_train_command(whole, *steps), env=_env(), cwd=ROOT, check=True,
+                   capture_output=True)
+    a, b = load_checkpoint(killed), load_checkpoint(whole)
+    assert a["step"] == b["step"] == 150
+    assert _states_equal(a["model"], b["model"])
+    with open(killed / "log.csv", newline="") as handle:
+        assert [int(r["step"]) for r in csv.DictReader(handle)] == list(range(1, 151))
+
+
+def test_two_torchrun_processes_keep_identical_weights(tmp_path):
+    torchrun = shutil.which("torchrun", path=str(Path(sys.executable).parent))
+    assert torchrun is not None
+    driver = tmp_path / "driver.py"
+    driver.write_text(
+        "import os, sys, torch\n"
+        "from cagekit_learn.train import TrainConfig, train\n"
+        f"config = TrainConfig(data='synthetic:vases:6', run_dir=sys.argv[1], points=128,\n"
+        f"    batch_size=1, seed=3, model={TINY_MODEL!r}, max_steps=4, device='cpu')\n"
+        "result = train(config, progress=False)\n"
+        "torch.save(result.model.state_dict(),\n"
+        "           os.path.join(sys.argv[1], f\"rank{os.environ['RANK']}.pt\"))\n")
+    run_dir = tmp_path / "run"
+    done = subprocess.run(
+        [torchrun, "--standalone", "--nproc-per-node", "2", str(driver), str(run_dir)],
+        env=_env(), cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    rank0 = torch.load(run_dir / "rank0.pt", weights_only=True)
+    rank1 = torch.load(run_dir / "rank1.pt", weights_only=True)
+    assert _states_equal(rank0, rank1)
+    payload = load_checkpoint(run_dir)
+    assert payload["step"] == 4 and _states_equal(payload["model"], rank0)
+    # training happened: the zero-initialised last layers moved
+    assert rank0["nd_decoder.layers.4.weight"].abs().sum() > 0
+    with open(run_dir / "log.csv", newline="") as handle:
+        assert len(list(csv.DictReader(handle))) == 4  # one writer: rank 0
+
+
+def test_l2_alignment_trains_on_shapes_in_correspondence(tmp_path):
+    from cagekit import io
+    from cagekit.datasets import synthetic
+    from cagekit.geometry import normalize
+
+    V, F = synthetic.vase(1, resolution=0.5)
+    folder = tmp_path / "poses"
+    folder.mkdir()
+    for i, stretch in enumerate(([1.0, 1.0, 1.0], [1.3, 0.9, 1.0], [0.8, 1.0, 1.2])):
+        io.save_mesh(folder / f"pose{i}.obj", V * stretch + i, F)
+    shapes = ShapeCollection.corresponding(folder, points=64, seed=1)
+    # point i of every shape is the same vertex, normalised with its own shape
+    row = np.flatnonzero(np.all(np.isclose(normalize(V)[0], shapes.points[0][0], atol=1e-6),
+                                axis=1))
+    assert len(row) >= 1
+    assert np.allclose(shapes.points[1][0], normalize(V * [1.3, 0.9, 1.0] + 1)[0][row[0]],
+                       atol=1e-6)
+    config = _config(tmp_path, data=str(folder), align="l2", points=64, batch_size=1,
+                     max_steps=3)
+    result = train(config, progress=False)
+    assert result.step == 3 and set(result.last_losses) >= {"align", "mvc"}
+    io.save_mesh(folder / "other.obj", *synthetic.vase(2, resolution=0.5))
+    with pytest.raises(InputError, match="vertex order"):
+        ShapeCollection.corresponding(folder, points=64)
