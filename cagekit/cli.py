@@ -979,6 +979,8 @@ def train(ctx, data, run_dir, epochs, batch_size, lr, device, resume, points, bo
     if os.path.exists(os.path.join(run_dir, "checkpoint.pt")) and not resume:
         raise InputError("holds a checkpoint already: --resume to continue it, or choose "
                          "another folder", run_dir)
+    if resume and ctx.get_parameter_source("epochs") == click.core.ParameterSource.DEFAULT:
+        epochs = None  # the stopped run's own number of epochs
     config = TrainConfig(
         data=data, run_dir=run_dir, epochs=epochs, batch_size=batch_size, lr=lr,
         points=points, seed=seed, device=device, checkpoint_every=checkpoint_every,

@@ -376,8 +376,8 @@ def train(config: TrainConfig, resume: bool = False, progress: bool = True,
     Parameters
     ----------
     config : TrainConfig
-        With ``resume`` the checkpoint's own config is used, except ``epochs``,
-        ``max_steps`` and ``max_minutes``, which may be raised to train longer.
+        With ``resume`` the checkpoint's own config is used, except ``epochs`` (unless
+        None), ``max_steps`` and ``max_minutes``, which may be raised to train longer.
     resume : bool
         Continue from ``run_dir/checkpoint.pt`` exactly where it stopped.
     progress : bool
@@ -394,8 +394,10 @@ def train(config: TrainConfig, resume: bool = False, progress: bool = True,
     if resume:
         payload = load_checkpoint(run_dir / CHECKPOINT_NAME)
         stored = TrainConfig.from_dict(payload["config"])
-        stored.epochs, stored.max_steps = config.epochs, config.max_steps
-        stored.max_minutes, stored.run_dir = config.max_minutes, config.run_dir
+        if config.epochs is not None:  # None: keep the stopped run's own
+            stored.epochs = config.epochs
+        stored.max_steps, stored.max_minutes = config.max_steps, config.max_minutes
+        stored.run_dir = config.run_dir
         config = stored
     _check(config)
     rank, world, local_rank = _distributed(config.device)

@@ -229,3 +229,19 @@ def test_l2_alignment_trains_on_shapes_in_correspondence(tmp_path):
     io.save_mesh(folder / "other.obj", *synthetic.vase(2, resolution=0.5))
     with pytest.raises(InputError, match="vertex order"):
         ShapeCollection.corresponding(folder, points=64)
+
+
+def test_resume_keeps_the_runs_own_epochs_unless_raised(tmp_path, capsys):
+    from cagekit.cli import main
+
+    run = tmp_path / "run"
+    args = ["train", *TINY_ARGS, "-o", str(run), "--epochs", "1"]
+    assert main(args, standalone_mode=False) == 0
+    assert load_checkpoint(run)["step"] == 3  # 6 pairs, batch 2
+    assert main(["train", *TINY_ARGS, "-o", str(run), "--resume"],
+                standalone_mode=False) == 0
+    assert load_checkpoint(run)["step"] == 3  # one epoch was asked for: nothing to add
+    assert main(["train", *TINY_ARGS, "-o", str(run), "--resume", "--epochs", "2"],
+                standalone_mode=False) == 0
+    assert load_checkpoint(run)["step"] == 6
+    capsys.readouterr()
