@@ -807,9 +807,14 @@ def deform(ctx, source, target, out, method, cage_path, faces, save_cage, symmet
                                "--model apply to --method cage only")
     if refine and not model_path:
         raise click.UsageError("--refine refines a prediction: it needs --model")
-    if model_path and (cage_path or landmarks or (weights and not refine)):
+    if model_path and (cage_path or landmarks):
         raise click.UsageError("--model predicts the cage: --cage and --landmarks do not "
-                               "apply, and --weight only with --refine")
+                               "apply")
+    tuned = (weights or symmetry != "none"
+             or ctx.get_parameter_source("reference") != click.core.ParameterSource.DEFAULT)
+    if model_path and tuned and not refine:
+        raise click.UsageError("--weight, --symmetry and --reference tune the per-pair "
+                               "optimisation: with --model they need --refine")
     model = _load_model(model_path) if model_path else None
     if save_cage is not None:
         mesh_exts = set(io.SUPPORTED_MESH_EXTENSIONS) - {".gltf"}
@@ -914,8 +919,9 @@ def deform(ctx, source, target, out, method, cage_path, faces, save_cage, symmet
 @click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), default="auto",
               show_default=True)
 @click.option("--resume", is_flag=True,
-              help="Continue the run in --output exactly where it stopped (its own "
-                   "settings; --epochs, --max-steps and --minutes may be raised).")
+              help="Continue the run in --output exactly where it stopped, with the "
+                   "same number of processes (its own settings; --epochs, --max-steps, "
+                   "--minutes and --device given again replace them).")
 @click.option("--points", default=1024, show_default=True, type=click.IntRange(min=16),
               help="Samples per shape.")
 @click.option("--bottleneck", default=256, show_default=True, type=click.IntRange(min=1),
@@ -979,8 +985,12 @@ def train(ctx, data, run_dir, epochs, batch_size, lr, device, resume, points, bo
     if os.path.exists(os.path.join(run_dir, "checkpoint.pt")) and not resume:
         raise InputError("holds a checkpoint already: --resume to continue it, or choose "
                          "another folder", run_dir)
-    if resume and ctx.get_parameter_source("epochs") == click.core.ParameterSource.DEFAULT:
-        epochs = None  # the stopped run's own number of epochs
+    if resume:  # what was not given again stays as the stopped run had it
+        default = click.core.ParameterSource.DEFAULT
+        if ctx.get_parameter_source("epochs") == default:
+            epochs = None
+        if ctx.get_parameter_source("device") == default:
+            device = None
     config = TrainConfig(
         data=data, run_dir=run_dir, epochs=epochs, batch_size=batch_size, lr=lr,
         points=points, seed=seed, device=device, checkpoint_every=checkpoint_every,

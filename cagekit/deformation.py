@@ -520,6 +520,8 @@ def deform(source, target, cage=None, *, method: str = "cage", symmetry: str | N
                          f"{reference!r}")
     if symmetry is not None and symmetry not in losses.AXES:
         raise InputError(f"symmetry must be x, y, z or None, got {symmetry!r}")
+    if initial_cage is not None and method != "cage":
+        raise InputError("initial_cage applies to method cage only")
     weights = _weights(weights, landmarks, symmetry, reference)
     for name, value in (("samples", samples), ("shape_points", shape_points),
                         ("max_evaluations", max_evaluations)):

@@ -40,6 +40,7 @@ import math
 import os
 import sys
 import time
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -100,7 +101,7 @@ class TrainConfig:
     nc_lr_factor: float = 0.1
     points: int = 1024
     seed: int = 0
-    device: str = "auto"
+    device: str | None = "auto"
     checkpoint_every: int = 200
     alpha_mvc: float = losses.ALPHA_MVC
     alpha_shape: float = losses.ALPHA_SHAPE
@@ -339,11 +340,23 @@ def _progress_bar(total, initial, active):
 # ---------------------------------------------------------------------------- training
 
 
+@contextmanager
+def _usable(path):
+    """Turn what a malformed checkpoint makes torch or Python raise into an InputError."""
+    try:
+        yield
+    except (KeyError, TypeError, ValueError, RuntimeError, AttributeError) as exc:
+        first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        raise InputError(f"not a usable cagekit checkpoint ({type(exc).__name__}: "
+                         f"{first})", str(path)) from None
+
+
 def load_model(path, map_location="cpu") -> tuple[NeuralCages, dict]:
     """A trained model (in eval mode) and its checkpoint from a file or run folder."""
     payload = load_checkpoint(path, map_location=map_location)
-    model = NeuralCages(ModelConfig.from_dict(payload["model_config"]))
-    model.load_state_dict(payload["model"])
+    with _usable(path):
+        model = NeuralCages(ModelConfig.from_dict(payload["model_config"]))
+        model.load_state_dict(payload["model"])
     model.eval()
     return model, payload
 
@@ -393,15 +406,18 @@ def train(config: TrainConfig, resume: bool = False, progress: bool = True,
     payload = None
     if resume:
         payload = load_checkpoint(run_dir / CHECKPOINT_NAME)
-        stored = TrainConfig.from_dict(payload["config"])
-        if config.epochs is not None:  # None: keep the stopped run's own
-            stored.epochs = config.epochs
-        stored.max_steps, stored.max_minutes = config.max_steps, config.max_minutes
+        with _usable(run_dir / CHECKPOINT_NAME):
+            stored = TrainConfig.from_dict(payload["config"])
+        for name in ("epochs", "max_steps", "max_minutes", "device"):
+            if getattr(config, name) is not None:  # None: keep the stopped run's own
+                setattr(stored, name, getattr(config, name))
         stored.run_dir = config.run_dir
         config = stored
     _check(config)
     rank, world, local_rank = _distributed(config.device)
     device = _device(config.device, local_rank)
+    if device.type == "cuda":
+        torch.cuda.set_device(device)  # collectives without device_ids use the current one
     if rank == 0:
         run_dir.mkdir(parents=True, exist_ok=True)
     if collection is None:
@@ -413,10 +429,16 @@ def train(config: TrainConfig, resume: bool = False, progress: bool = True,
     optimizer = _optimizer(net, config)
     step = epoch = skipped = 0
     if payload is not None:
-        net.load_state_dict(payload["model"])
-        optimizer.load_state_dict(payload["optimizer"])
-        step, epoch, skipped = payload["step"], payload["epoch"], payload["skipped"]
-        torch.set_rng_state(payload["rng"])
+        with _usable(run_dir / CHECKPOINT_NAME):
+            net.load_state_dict(payload["model"])
+            optimizer.load_state_dict(payload["optimizer"])
+            step, epoch, skipped = payload["step"], payload["epoch"], payload["skipped"]
+            torch.set_rng_state(payload["rng"])
+            ranks = payload.get("world_size", 1)
+        if ranks != world:
+            raise InputError(f"was trained by {ranks} process(es); resume it with the same "
+                             f"number (now {world}) so that it continues exactly",
+                             str(run_dir))
     model = net
     if world > 1:
         from torch.nn.parallel import DistributedDataParallel
@@ -431,8 +453,7 @@ def train(config: TrainConfig, resume: bool = False, progress: bool = True,
     total_steps = steps_per_epoch * config.epochs
     if config.max_steps is not None:
         total_steps = min(total_steps, config.max_steps)
-    log = _Log(run_dir, rank == 0, step)
-    bar = _progress_bar(total_steps, step, progress and rank == 0)
+    log = bar = None
     start, trained_pairs, last = time.perf_counter(), 0, {}
 
     def checkpoint():
@@ -441,7 +462,7 @@ def train(config: TrainConfig, resume: bool = False, progress: bool = True,
                 "model": net.state_dict(), "optimizer": optimizer.state_dict(),
                 "config": config.to_dict(), "model_config": net.config.to_dict(),
                 "step": step, "epoch": step // steps_per_epoch, "skipped": skipped,
-                "rng": torch.get_rng_state()})
+                "rng": torch.get_rng_state(), "world_size": world})
         if world > 1:
             import torch.distributed as dist
 
@@ -449,6 +470,8 @@ def train(config: TrainConfig, resume: bool = False, progress: bool = True,
 
     model.train()
     try:
+        log = _Log(run_dir, rank == 0, step)
+        bar = _progress_bar(total_steps, step, progress and rank == 0)
         while step < total_steps:
             epoch, index = divmod(step, steps_per_epoch)
             pairs = shard(epoch_pairs(len(collection), epoch, config.seed), rank, world)
@@ -485,7 +508,8 @@ def train(config: TrainConfig, resume: bool = False, progress: bool = True,
             if out_of_time:
                 break
     finally:
-        log.close()
+        if log is not None:
+            log.close()
         if bar is not None:
             bar.close()
         if _OWNED_GROUP:

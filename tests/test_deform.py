@@ -163,6 +163,8 @@ def test_initial_cage_sets_where_the_optimiser_starts(blob, blob_cage):
     far = cagekit.deform(blob, target, cage=blob_cage, max_evaluations=1,
                          initial_cage=first.deformed_cage_v * 1.5)
     assert far.initial_energy > first.initial_energy
+    with pytest.raises(InputError, match="method cage only"):
+        cagekit.deform(blob, target, method="scale", initial_cage=first.deformed_cage_v)
     with pytest.raises(InputError, match="needs the cage"):
         cagekit.deform(blob, target, initial_cage=first.deformed_cage_v)
     with pytest.raises(InputError, match="vertices"):

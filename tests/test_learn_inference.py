@@ -113,12 +113,17 @@ def test_deform_model_command(run_dir, pair, tmp_path, capsys):
     (["--model", "{missing}"], "no such checkpoint"),
     (["--refine"], "needs --model"),
     (["--model", "{run}", "--method", "scale"], "apply to --method cage only"),
+    (["--model", "{run}", "--symmetry", "x"], "need --refine"),
+    (["--model", "{hollow}"], "not a usable cagekit checkpoint"),
 ])
 def test_deform_model_bad_input_exits_2_with_one_line(run_dir, pair, tmp_path, capsys,
                                                       args, message):
     bad = tmp_path / "bad.pt"
     bad.write_bytes(b"\x00junk")
-    names = {"bad": bad, "missing": tmp_path / "missing.pt", "run": run_dir}
+    hollow = tmp_path / "hollow.pt"  # readable, but not what a model needs
+    torch.save({"format": 1, "model": {}, "model_config": {"nc": "bogus"}}, hollow)
+    names = {"bad": bad, "missing": tmp_path / "missing.pt", "run": run_dir,
+             "hollow": hollow}
     args = [a.format(**names) for a in args]
     code, _, err = _cli(["deform", str(pair[0]), str(pair[1]), "-o",
                          str(tmp_path / "o.obj"), *args], capsys)
