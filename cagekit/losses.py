@@ -161,6 +161,13 @@ def landmark_loss(P, T) -> tuple[float, np.ndarray]:
     return _finite(value, "landmark loss"), 2.0 * diff / len(P)
 
 
+def axis_index(axis: str) -> int:
+    """0, 1 or 2 for a symmetry axis ``"x"``, ``"y"`` or ``"z"``; InputError otherwise."""
+    if axis not in AXES:
+        raise InputError(f"symmetry axis must be one of x, y, z, got {axis!r}")
+    return AXES[axis]
+
+
 def mirror(P, axis: str) -> np.ndarray:
     """Reflect points across the plane through the origin normal to ``axis``.
 
@@ -178,10 +185,8 @@ def mirror(P, axis: str) -> np.ndarray:
     >>> mirror(np.array([[1.0, 2.0, 3.0]]), "x").tolist()
     [[-1.0, 2.0, 3.0]]
     """
-    if axis not in AXES:
-        raise InputError(f"symmetry axis must be one of x, y, z, got {axis!r}")
     out = np.array(P, dtype=np.float64, copy=True)
-    out[:, AXES[axis]] *= -1.0
+    out[:, axis_index(axis)] *= -1.0
     return out
 
 

@@ -445,6 +445,11 @@ def mean_value_coordinates(points, cage_v, cage_f, *, snap: float | None = None,
     >>> bool(torch.isfinite(cage.grad).all())
     True
     """
+    return _weights_and_faces(points, cage_v, cage_f, snap, chunk_size)[0]
+
+
+def _weights_and_faces(points, cage_v, cage_f, snap, chunk_size):
+    """:func:`mean_value_coordinates` and the checked (outward) faces as NumPy int64."""
     points = _as_float_tensor(points, "points")
     cage_v = _as_float_tensor(cage_v, "cage_v")
     if cage_v.dtype != points.dtype:
@@ -508,7 +513,7 @@ def mean_value_coordinates(points, cage_v, cage_f, *, snap: float | None = None,
         out = Pc.new_zeros((B, 0, k))
     else:
         out = outs[0] if len(outs) == 1 else torch.cat(outs, 1)
-    return out[0] if unbatched else out
+    return (out[0] if unbatched else out), faces_np
 
 
 def deform(weights, new_cage_v) -> torch.Tensor:
@@ -633,10 +638,7 @@ def bind(points, cage_v, cage_f, method: str = "mvc", chunk_size: int = 2048) ->
     """
     if method not in METHODS:
         raise InputError(f"unknown coordinates {method!r}; available: {', '.join(METHODS)}")
-    weights = mean_value_coordinates(points, cage_v, cage_f, chunk_size=chunk_size)
+    weights, faces = _weights_and_faces(points, cage_v, cage_f, None, chunk_size)
     cage = cage_v if isinstance(cage_v, torch.Tensor) else torch.as_tensor(
         np.asarray(cage_v, dtype=np.float64))
-    f_np = cage_f.detach().cpu().numpy() if isinstance(cage_f, torch.Tensor) else cage_f
-    faces = check_cage((cage[0] if cage.ndim == 3 else cage).detach().to(
-        "cpu", torch.float64).numpy(), np.asarray(f_np))
     return CageBinding(weights, cage, torch.as_tensor(faces, device=weights.device), method)

@@ -53,7 +53,7 @@ import torch
 from torch.autograd.function import once_differentiable
 
 from cagekit.errors import InputError
-from cagekit.losses import AXES
+from cagekit.losses import axis_index
 
 __all__ = [
     "ALPHA_MVC",
@@ -205,10 +205,8 @@ def mirror(P: torch.Tensor, axis: str) -> torch.Tensor:
     >>> mirror(torch.tensor([[1.0, 2.0, 3.0]]), "x").tolist()
     [[-1.0, 2.0, 3.0]]
     """
-    if axis not in AXES:
-        raise InputError(f"symmetry axis must be one of x, y, z, got {axis!r}")
     sign = torch.ones(3, dtype=P.dtype, device=P.device)
-    sign[AXES[axis]] = -1.0
+    sign[axis_index(axis)] = -1.0
     return P * sign
 
 

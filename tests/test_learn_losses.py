@@ -9,10 +9,9 @@ identities.
 import numpy as np
 import pytest
 import torch
-import trimesh
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from scipy.spatial import cKDTree
+from test_losses import icosphere, nn_margin  # shared test helpers
 
 from cagekit import losses as npl
 from cagekit.errors import InputError
@@ -50,22 +49,6 @@ def assert_grad(grad_t, grad_np):
     scale = max(np.abs(grad_np).max(), 1e-300)
     err = np.abs(grad_t - grad_np).max()
     assert err <= GRAD_RTOL * scale, f"gradient error {err:.3g} vs max |grad| {scale:.3g}"
-
-
-def nn_margin(P, Q):
-    """Smallest gap between the nearest and second-nearest distance, both directions."""
-    margins = []
-    for A, B in ((P, Q), (Q, P)):
-        if len(B) < 2:
-            continue
-        d, _ = cKDTree(B).query(A, k=2)
-        margins.append((d[:, 1] - d[:, 0]).min())
-    return min(margins, default=np.inf)
-
-
-def icosphere(subdivisions=2):
-    m = trimesh.creation.icosphere(subdivisions=subdivisions)
-    return np.asarray(m.vertices, dtype=float), np.asarray(m.faces, dtype=np.int64)
 
 
 def rest_shapes(B=3, subdivisions=2):
