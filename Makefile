@@ -5,7 +5,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-slow lint bench bench-fit-cage bench-deform bench-learn venv clean
+.PHONY: demo test test-slow lint bench bench-fit-cage bench-deform bench-learn bench-transfer venv clean
 
 $(STAMP): setup.cfg pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -46,6 +46,11 @@ bench-deform: $(STAMP)
 # trains the learned cages for 20 minutes on 300 synthetic chairs, then compares on 50 pairs
 bench-learn: $(STAMP)
 	$(BIN)/python benchmarks/bench_learn.py --json out/bench_learn.json
+
+# writes the humanoid data set (out/humanoid), trains the fixed-source model (6000 steps,
+# about 16 min, reused when there) and compares the transfers with ground truth
+bench-transfer: $(STAMP)
+	$(BIN)/python benchmarks/bench_transfer.py --json out/bench_transfer.json --grid out/transfer_grid.png
 
 clean:
 	rm -rf out .pytest_cache build *.egg-info

@@ -53,8 +53,11 @@ def _debug_requested(args) -> bool:
     return "--debug" in args or os.environ.get("CAGEKIT_DEBUG", "") not in ("", "0")
 
 
-class _Group(click.Group):
-    """A click group whose errors are one line on stderr, with fixed exit statuses."""
+class OneLineErrors:
+    """Mixin for a click command or group: errors are one line on stderr, with fixed exit
+    statuses (0 success, 1 failure, 2 bad input or usage, 130 interrupted); ``--debug``
+    (or ``CAGEKIT_DEBUG=1``) adds the traceback. The applications in ``apps/`` use it too.
+    """
 
     def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True,
              **extra):
@@ -120,6 +123,14 @@ def _os_error_message(exc: OSError) -> str:
 
 #: the running command's name, for error lines ("cagekit apply: error: ...")
 _CURRENT: dict[str, str] = {}
+
+
+class _Group(OneLineErrors, click.Group):
+    """The ``cagekit`` group."""
+
+
+class Command(OneLineErrors, click.Command):
+    """A stand-alone click command with cagekit's error handling (``cls=Command``)."""
 
 
 def _start(ctx: click.Context) -> None:
@@ -928,10 +939,17 @@ def deform(ctx, source, target, out, method, cage_path, faces, save_cage, symmet
               help="Size of the PointNet code.")
 @click.option("--nc", type=click.Choice(["learned", "identity", "source-invariant"]),
               default="learned", show_default=True, help="The N_c variant.")
+@click.option("--fixed-source", type=click.Path(dir_okay=False), default=None,
+              metavar="TEMPLATE_MESH",
+              help="Train with one fixed source: every pair is (TEMPLATE_MESH, a shape of "
+                   "DATA_DIR), each shape once per epoch (a character in rest pose and its "
+                   "poses). With --align l2 it must share the shapes' vertex order. It is "
+                   "never augmented; its samples are stored in the checkpoint.")
 @click.option("--source-cage", type=click.Path(dir_okay=False), default=None,
-              help="A fixed source cage (mesh file, in the paper's frame: the source "
-                   "normalised to [-1, 1]) instead of N_c, for a collection that shares "
-                   "one source.")
+              help="A fixed source cage (mesh file) instead of N_c, for a collection that "
+                   "shares one source. With --fixed-source it is in TEMPLATE_MESH's own "
+                   "frame (the cage drawn around it); without, in the paper's frame (the "
+                   "source normalised to [-1, 1]).")
 @click.option("--no-box-align", is_flag=True,
               help="N_d offsets the source cage itself, not its box-aligned stretch.")
 @click.option("--symmetry", type=click.Choice(["x", "y", "z", "none"]), default="none",
@@ -951,8 +969,8 @@ def deform(ctx, source, target, out, method, cage_path, faces, save_cage, symmet
 @_debug_option
 @click.pass_context
 def train(ctx, data, run_dir, epochs, batch_size, lr, device, resume, points, bottleneck,
-          nc, source_cage, no_box_align, symmetry, align, no_augment, checkpoint_every,
-          max_steps, minutes, seed, as_json):
+          nc, fixed_source, source_cage, no_box_align, symmetry, align, no_augment,
+          checkpoint_every, max_steps, minutes, seed, as_json):
     """Train N_c and N_d (the paper's networks) on the meshes under DATA_DIR.
 
     DATA_DIR is searched recursively for meshes (ShapeNet's layout works as is); each is
@@ -960,28 +978,30 @@ def train(ctx, data, run_dir, epochs, batch_size, lr, device, resume, points, bo
     (or tables, vases) trains on procedural shapes instead. Scale out with
     `torchrun --nproc-per-node N -m cagekit_learn.train DATA_DIR -o RUN_DIR`.
 
+    With --fixed-source TEMPLATE_MESH the template is the source of every pair and the
+    shapes of DATA_DIR are the targets (the paper's human setting: poses of one character
+    with a consistent vertex order, --align l2); --source-cage is then a cage around the
+    template in the template's own frame.
+
     \b
     Example:
       cagekit train synthetic:chairs:300 -o runs/chairs --epochs 50
       cagekit deform a.obj b.obj --model runs/chairs -o out.obj
+      cagekit train poses/ --fixed-source rest.obj --source-cage rest_cage.obj \\
+          --align l2 -o runs/human
     """
     _start(ctx)
     try:
         from cagekit_learn.networks import ModelConfig
-        from cagekit_learn.train import TrainConfig
+        from cagekit_learn.train import TrainConfig, load_source_cage
         from cagekit_learn.train import train as run
     except ImportError as exc:
         raise InputError(f"training needs the learned mode: pip install -e '.[learn]' "
                          f"({exc})") from None
     model = ModelConfig(bottleneck=bottleneck, nc=nc, box_align=not no_box_align)
-    if source_cage is not None:
-        from cagekit import io
-        from cagekit.cage import check_cage
-
-        cage_v, cage_f = io.load_mesh(source_cage)
-        cage_f = check_cage(cage_v, cage_f, name=source_cage)
-        model.fixed_cage_v = cage_v.tolist()
-        model.fixed_cage_f = cage_f.tolist()
+    if source_cage is not None and not resume:  # a resumed run keeps its own cage
+        model.fixed_cage_v, model.fixed_cage_f = load_source_cage(source_cage,
+                                                                  template=fixed_source)
     if os.path.exists(os.path.join(run_dir, "checkpoint.pt")) and not resume:
         raise InputError("holds a checkpoint already: --resume to continue it, or choose "
                          "another folder", run_dir)
@@ -996,7 +1016,7 @@ def train(ctx, data, run_dir, epochs, batch_size, lr, device, resume, points, bo
         points=points, seed=seed, device=device, checkpoint_every=checkpoint_every,
         symmetry=None if symmetry == "none" else symmetry, align=align,
         augment=not no_augment, max_steps=max_steps, max_minutes=minutes,
-        model=model.to_dict())
+        model=model.to_dict(), fixed_source=fixed_source)
     result = run(config, resume=resume, progress=_progress_enabled())
     figures = {"run_dir": run_dir, "steps": result.step, "epochs": result.epoch,
                "skipped_steps": result.skipped, "losses": result.last_losses,

@@ -61,6 +61,7 @@ import secrets
 import stat
 import struct
 from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
 
 import numpy as np
 import trimesh
@@ -76,6 +77,8 @@ __all__ = [
     "load_mesh",
     "load_points",
     "load_shape",
+    "LandmarkMatch",
+    "match_landmarks",
     "save_landmarks",
     "save_mesh",
     "save_points",
@@ -1098,3 +1101,69 @@ def save_landmarks(path: str | os.PathLike, landmarks: Mapping[str, object]) -> 
             writer = csv.writer(fh, lineterminator="\n")
             writer.writerow(["label", "x", "y", "z"])
             writer.writerows([label, *map(repr, xyz)] for label, xyz in items)
+
+
+@dataclass(frozen=True)
+class LandmarkMatch:
+    """Two landmark sets matched by label (:func:`match_landmarks`).
+
+    Attributes
+    ----------
+    labels : list of str
+        The shared labels, in the first set's order.
+    source, target : (L, 3) float64
+        Their positions in each set; row ``i`` is ``labels[i]``.
+    source_only, target_only : list of str
+        Labels found in one set only (reported, never silently dropped).
+    """
+
+    labels: list
+    source: np.ndarray
+    target: np.ndarray
+    source_only: list
+    target_only: list
+
+
+def match_landmarks(source: Mapping[str, object], target: Mapping[str, object], *,
+                    minimum: int = 4, source_name=None, target_name=None) -> LandmarkMatch:
+    """Pair two sets of named landmarks by label.
+
+    Parameters
+    ----------
+    source, target : mapping of str to (3,) array_like of float
+        Label -> position, as :func:`load_landmarks` returns them.
+    minimum : int, default 4
+        Fewest shared labels accepted.
+    source_name, target_name : str or os.PathLike, optional
+        The files the sets came from, named in the error.
+
+    Returns
+    -------
+    LandmarkMatch
+        Shared labels in ``source``'s order, and the labels only one set has.
+
+    Raises
+    ------
+    InputError
+        Fewer than ``minimum`` shared labels (the message names both files and the count).
+
+    Examples
+    --------
+    >>> m = match_landmarks({"a": [0, 0, 0], "b": [1, 0, 0], "c": [0, 1, 0]},
+    ...                     {"b": [2, 0, 0], "a": [0, 0, 1], "d": [0, 0, 0]}, minimum=2)
+    >>> m.labels, m.source_only, m.target_only, m.target[0].tolist()
+    (['a', 'b'], ['c'], ['d'], [0.0, 0.0, 1.0])
+    """
+    labels = [label for label in source if label in target]
+    if len(labels) < minimum:
+        names = (f"{source_name or 'the source landmarks'} and "
+                 f"{target_name or 'the target landmarks'}")
+        raise InputError(f"{names} share {len(labels)} landmark label(s); at least "
+                         f"{minimum} are needed")
+
+    def rows(marks):
+        return np.array([np.asarray(marks[label], dtype=np.float64) for label in labels])
+
+    return LandmarkMatch(labels=labels, source=rows(source), target=rows(target),
+                         source_only=[label for label in source if label not in target],
+                         target_only=[label for label in target if label not in source])

@@ -80,7 +80,9 @@ tensors have ``3 faces x B chunk`` entries, and no tensor has ``B x n x faces x 
 gradient is needed each chunk runs under :func:`torch.utils.checkpoint.checkpoint`
 (``use_reentrant=False``): the forward pass keeps only the chunk's inputs and the backward
 pass recomputes the chunk, so the memory kept for backward is about the size of the points,
-far below the ``B x n x k`` output (tested: under 4x the output's bytes).
+far below the ``B x n x k`` output (tested: under 4x the output's bytes). Small chunks
+(``B x chunk x faces`` up to 2**17, say 80 landmarks in a 100-vertex cage) are not
+recomputed: there the saved tensors are small and recomputation would double the cost.
 
 Speed
 -----
@@ -122,6 +124,8 @@ _FACE_TOL = {torch.float64: 1e-12, torch.float32: 1e-5}
 _RECHECK = 1e-6
 # Below this ratio s / c the edge term uses its Taylor form.
 _TAYLOR_RATIO = 1e-3
+#: (batch x points x faces) of a chunk above which the backward recomputes it
+_RECOMPUTE_ABOVE = 1 << 17
 
 
 @dataclass(frozen=True)
@@ -502,10 +506,13 @@ def _weights_and_faces(points, cage_v, cage_f, snap, chunk_size):
         off = (Vc[:, f[:, 0]] * nrm).sum(-1)                                # (B, m)
 
     grad = torch.is_grad_enabled() and (Pc.requires_grad or Vc.requires_grad)
+    # recomputation only pays where the saved tensors would be large (not for a few
+    # landmarks in a small cage, where it would double the cost of every evaluation)
+    recompute = B * min(n, chunk_size) * len(faces_np) > _RECOMPUTE_ABOVE
     outs = []
     for start in range(0, n, chunk_size):
         p = Pc[:, start:start + chunk_size]
-        if grad:
+        if grad and recompute:
             outs.append(checkpoint(_chunk, p, Vc, nrm, off, snap_d, cst, use_reentrant=False))
         else:
             outs.append(_chunk(p, Vc, nrm, off, snap_d, cst))

@@ -8,6 +8,12 @@ largest half-extent 1; :func:`cagekit.normalize`). It comes from a folder of mes
 each epoch (:func:`epoch_pairs`), splits them between ranks (:func:`shard`) and turns them
 into tensors with the paper's anisotropic-scaling augmentation (:func:`make_batch`).
 
+With a **fixed source** (the paper's human setting: one template character in rest pose
+is the source of every pair, its poses are the targets) the template is read once
+(:class:`FixedSource`), each epoch pairs it with every shape of the collection once
+(:func:`fixed_source_pairs`, whose source column is :data:`FIXED_SOURCE`), and
+:func:`make_batch` puts the template's samples in the source slot, never augmented.
+
 Decisions
 ---------
 - **Determinism.** Every random draw is seeded from explicit integers through
@@ -27,7 +33,13 @@ Decisions
   at least ``P`` points and with replacement otherwise.
 - **Augmentation** is seeded per batch row from ``(seed, epoch, step, row, source index,
   target index)``: a resumed run reproduces a batch exactly, and ranks of a distributed
-  run, which share ``(epoch, step)``, still draw different scales.
+  run, which share ``(epoch, step)``, still draw different scales. A fixed source is
+  never augmented (its cage, when given, is fixed to it); only its targets are, seeded
+  from ``(seed, epoch, step, row, target index)`` under a tag of their own.
+- **Correspondence.** :meth:`ShapeCollection.corresponding` and a fixed source read with
+  ``corresponding=True`` take the same seeded vertex rows (:func:`corresponding_rows`,
+  a function of ``(vertex count, points, seed)``), so point ``i`` of the template
+  corresponds to point ``i`` of every shape.
 - **Imports.** Only NumPy and cagekit at import time; torch is imported by
   :func:`make_batch` alone.
 
@@ -62,11 +74,15 @@ from cagekit.metrics import surface_samples
 __all__ = [
     "CACHE_DIRNAME",
     "CACHE_FORMAT",
+    "FIXED_SOURCE",
     "MESH_EXTENSIONS",
+    "FixedSource",
     "ShapeCollection",
     "augment",
+    "corresponding_rows",
     "epoch_pairs",
     "find_meshes",
+    "fixed_source_pairs",
     "make_batch",
     "shard",
 ]
@@ -89,6 +105,11 @@ _TAG_PAIRS = 0x5A3D1E02
 _TAG_AUGMENT = 0x5A3D1E03
 _TAG_SPLIT = 0x5A3D1E04
 _TAG_CORRESPONDING = 0x5A3D1E05
+_TAG_FIXED_PAIRS = 0x5A3D1E06
+_TAG_AUGMENT_TARGET = 0x5A3D1E07
+
+FIXED_SOURCE = -1
+"""Source index of a pair whose source is the fixed source (:func:`fixed_source_pairs`)."""
 
 
 # ------------------------------------------------------------------------------ helpers
@@ -200,6 +221,11 @@ class ShapeCollection:
         ``P`` samples of each shape, uniform by area on the surface of the shape normalised
         on its own (bounding-box centre at the origin, largest half-extent 1), so every
         point lies in ``[-1, 1]^3``.
+    rows : (P,) int64 ndarray or None
+        For a collection in correspondence (:meth:`corresponding`): the vertex rows every
+        shape's samples were taken from; None otherwise.
+    vertex_count : int or None
+        For a collection in correspondence: the vertex count all its meshes share.
 
     Examples
     --------
@@ -224,6 +250,8 @@ class ShapeCollection:
             raise InputError("points must be finite (no NaN or infinity)")
         self.names: list[str] = names
         self.points: np.ndarray = points
+        self.rows: np.ndarray | None = None
+        self.vertex_count: int | None = None
 
     def __len__(self) -> int:
         return len(self.names)
@@ -299,11 +327,12 @@ class ShapeCollection:
             if len(V) != n:
                 raise InputError(f"{path}: {len(V)} vertices, but {paths[0].name} has {n}: "
                                  "shapes in correspondence share one vertex order")
-        rng = np.random.default_rng([_TAG_CORRESPONDING, _count(seed, "seed")])
-        rows = (np.sort(rng.choice(n, size=points, replace=False)) if n >= points
-                else rng.integers(0, n, size=points))
+        rows = corresponding_rows(n, points, seed)
         names = [path.relative_to(root).as_posix() for path in paths]
-        return cls(names, np.stack([normalize(V)[0][rows] for V in shapes]).astype(np.float32))
+        collection = cls(names, np.stack([normalize(V)[0][rows] for V in shapes]
+                                         ).astype(np.float32))
+        collection.rows, collection.vertex_count = rows, n
+        return collection
 
     @classmethod
     def synthetic(cls, family="chairs", n=32, seed=0, points=1024,
@@ -540,10 +569,140 @@ class ShapeCollection:
         test = np.zeros(len(self), dtype=bool)
         test[order[:n_test]] = True
         pick = np.flatnonzero
-        return (
+        halves = (
             type(self)([self.names[i] for i in pick(~test)], self.points[~test]),
             type(self)([self.names[i] for i in pick(test)], self.points[test]),
         )
+        for half in halves:
+            half.rows, half.vertex_count = self.rows, self.vertex_count
+        return halves
+
+
+# ------------------------------------------------------------------------ correspondence
+
+
+def corresponding_rows(n_vertices: int, points: int, seed: int = 0) -> np.ndarray:
+    """The seeded vertex rows sampled from shapes in correspondence.
+
+    Parameters
+    ----------
+    n_vertices : int
+        The vertex count the shapes share (>= 1).
+    points : int
+        Number of rows (>= 1).
+    seed : int, default 0
+
+    Returns
+    -------
+    rows : (points,) int64 ndarray
+        Sorted distinct rows when ``n_vertices >= points``, else drawn with replacement.
+        Deterministic in ``(n_vertices, points, seed)``: :meth:`ShapeCollection.corresponding`
+        and :meth:`FixedSource.from_file` take the same rows.
+
+    Examples
+    --------
+    >>> corresponding_rows(10, 4, seed=1).shape
+    (4,)
+    """
+    n = _count(n_vertices, "n_vertices", 1)
+    points = _count(points, "points", 1)
+    rng = np.random.default_rng([_TAG_CORRESPONDING, _count(seed, "seed")])
+    rows = (np.sort(rng.choice(n, size=points, replace=False)) if n >= points
+            else rng.integers(0, n, size=points))
+    return rows.astype(np.int64)
+
+
+class FixedSource:
+    """The one source shape of every training pair (a template character in rest pose).
+
+    Build it with :meth:`from_file`.
+
+    Attributes
+    ----------
+    path : str
+        The template's file.
+    points : (P, 3) float32 ndarray
+        Its samples in its normalised frame (bounding-box centre at the origin, largest
+        half-extent 1): the vertex rows :attr:`rows` with ``corresponding=True``, else
+        ``P`` samples uniform by area on its surface (as any shape of
+        :meth:`ShapeCollection.from_folder`).
+    rows : (P,) int64 ndarray or None
+        The vertex rows of :attr:`points` (``corresponding=True``), else None.
+    vertex_count : int
+        Vertex count of the template.
+    center : (3,) float64 ndarray
+    scale : float
+        Its normalisation: ``normalised = (V - center) / scale``.
+    """
+
+    def __init__(self, path, points, rows, vertex_count, center, scale):
+        self.path = str(path)
+        self.points = np.ascontiguousarray(points, dtype=np.float32)
+        self.rows = None if rows is None else np.asarray(rows, dtype=np.int64)
+        self.vertex_count = int(vertex_count)
+        self.center = np.asarray(center, dtype=np.float64)
+        self.scale = float(scale)
+
+    def __repr__(self) -> str:
+        return f"FixedSource({self.path!r}, {len(self.points)} points)"
+
+    @classmethod
+    def from_file(cls, path, points=1024, seed=0, corresponding=False,
+                  vertex_count=None) -> FixedSource:
+        """Read and sample a template mesh.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            A mesh file (or a point cloud when not ``corresponding``).
+        points : int, default 1024
+            Samples (>= 1).
+        seed : int, default 0
+            Seed of the samples, as the collection's.
+        corresponding : bool, default False
+            Take the vertex rows :func:`corresponding_rows` of the template (for the L2
+            alignment with a collection in correspondence: point ``i`` of the template is
+            then point ``i`` of every shape), instead of surface samples.
+        vertex_count : int, optional
+            With ``corresponding``: the collection's vertex count, which the template must
+            share.
+
+        Returns
+        -------
+        FixedSource
+
+        Raises
+        ------
+        InputError
+            An unreadable or degenerate file, or (``corresponding``) a vertex count that
+            differs from ``vertex_count``; the message names the file.
+        """
+        points = _count(points, "points", 1)
+        seed = _count(seed, "seed")
+        path = pathlib.Path(path)
+        V, F = load_shape(path)
+        try:
+            Vn, center, scale = normalize(V)
+        except InputError as exc:
+            raise InputError(exc.problem, path) from None
+        if corresponding:
+            if vertex_count is not None and len(V) != int(vertex_count):
+                raise InputError(f"{len(V)} vertices, but the training shapes have "
+                                 f"{int(vertex_count)}: with the L2 alignment the fixed "
+                                 "source shares their vertex order", path)
+            rows = corresponding_rows(len(V), points, seed)
+            samples = Vn[rows]
+        else:
+            rows = None
+            try:
+                samples = _sample_shape(V, F, points, _shape_seed(seed, path.name))
+            except InputError as exc:
+                raise InputError(exc.problem, path) from None
+        return cls(path, samples, rows, len(V), center, scale)
+
+    def normalise(self, V) -> np.ndarray:
+        """(n, 3) positions in the template's own frame -> its normalised frame (float64)."""
+        return (np.asarray(V, dtype=np.float64) - self.center) / self.scale
 
 
 # ------------------------------------------------------------------------------- cache
@@ -636,6 +795,40 @@ def epoch_pairs(n_shapes: int, epoch: int, seed: int = 0) -> np.ndarray:
     return np.stack([sources, targets], axis=1).astype(np.int64)
 
 
+def fixed_source_pairs(n_targets: int, epoch: int, seed: int = 0) -> np.ndarray:
+    """The (source, target) pairs of one epoch with a fixed source.
+
+    Parameters
+    ----------
+    n_targets : int
+        Number of shapes in the collection (the targets), >= 1.
+    epoch : int
+        Epoch number (>= 0).
+    seed : int, default 0
+        Seed (>= 0).
+
+    Returns
+    -------
+    pairs : (n_targets, 2) int64 ndarray
+        Column 0 is :data:`FIXED_SOURCE` (-1, the fixed source, which is not a shape of
+        the collection); column 1 a seeded permutation of ``range(n_targets)``, so every
+        target is visited once per epoch. Deterministic in ``(n_targets, epoch, seed)``;
+        different epochs give different orders. Split it between ranks with
+        :func:`shard`, as :func:`epoch_pairs`.
+
+    Examples
+    --------
+    >>> p = fixed_source_pairs(4, epoch=0)
+    >>> p[:, 0].tolist(), sorted(p[:, 1].tolist())
+    ([-1, -1, -1, -1], [0, 1, 2, 3])
+    """
+    n = _count(n_targets, "n_targets", 1)
+    rng = np.random.default_rng([_TAG_FIXED_PAIRS, _count(seed, "seed"),
+                                 _count(epoch, "epoch")])
+    targets = rng.permutation(n).astype(np.int64)
+    return np.stack([np.full(n, FIXED_SOURCE, dtype=np.int64), targets], axis=1)
+
+
 def shard(pairs, rank: int, world_size: int) -> np.ndarray:
     """One rank's share of the pairs for DistributedDataParallel.
 
@@ -715,7 +908,7 @@ def augment(points, rng, low=0.75, high=1.25) -> np.ndarray:
 
 
 def make_batch(collection, pairs, *, epoch, step, seed=0, augmentation=True,
-               dtype=None) -> dict:
+               dtype=None, source_points=None) -> dict:
     """Tensors of one training step.
 
     Parameters
@@ -723,24 +916,30 @@ def make_batch(collection, pairs, *, epoch, step, seed=0, augmentation=True,
     collection : ShapeCollection or (N, P, 3) array_like
         The shapes.
     pairs : (b, 2) array_like of int
-        Rows of (source index, target index) into ``collection``.
+        Rows of (source index, target index) into ``collection``; with ``source_points``
+        every source index is :data:`FIXED_SOURCE` (:func:`fixed_source_pairs`).
     epoch, step : int
         Position of the batch in training (>= 0); with ``seed`` they fix the augmentation.
     seed : int, default 0
         Seed (>= 0).
     augmentation : bool, default True
-        Apply :func:`augment` to every source and, independently, every target.
+        Apply :func:`augment` to every source and, independently, every target. A fixed
+        source is never augmented, only its targets.
     dtype : torch.dtype, optional
         Of the point tensors; default ``torch.float32``.
+    source_points : (P, 3) array_like of float, optional
+        The fixed source (normalised samples, :attr:`FixedSource.points`), the source of
+        every row, as it is.
 
     Returns
     -------
     dict
         ``"source"``, ``"target"``: (b, P, 3) tensors of ``dtype``; ``"source_index"``,
         ``"target_index"``: (b,) ``torch.long`` tensors. Row ``i`` is augmented with a
-        Generator seeded from ``(seed, epoch, step, i, source index, target index)``, so
-        the same arguments give the same batch (a resumed run reproduces it) and ranks of
-        a distributed run draw different factors.
+        Generator seeded from ``(seed, epoch, step, i, source index, target index)`` (with a
+        fixed source: ``(seed, epoch, step, i, target index)``), so the same arguments give
+        the same batch (a resumed run reproduces it) and ranks of a distributed run draw
+        different factors.
 
     Examples
     --------
@@ -759,14 +958,35 @@ def make_batch(collection, pairs, *, epoch, step, seed=0, augmentation=True,
     if pairs.ndim != 2 or pairs.shape[1] != 2 or not np.issubdtype(pairs.dtype, np.integer):
         raise InputError(f"pairs must be a (b, 2) integer array, got {pairs.dtype} "
                          f"{pairs.shape}")
-    if len(pairs) and (pairs.min() < 0 or pairs.max() >= len(data)):
+    fixed = source_points is not None
+    if fixed:
+        source_points = np.asarray(source_points, dtype=np.float32)
+        if source_points.shape != data.shape[1:]:
+            raise InputError(f"source_points must have shape {data.shape[1:]} (as every "
+                             f"shape), got {source_points.shape}")
+        if len(pairs) and (pairs[:, 0] != FIXED_SOURCE).any():
+            raise InputError(f"with source_points every source index must be "
+                             f"{FIXED_SOURCE} (fixed_source_pairs)")
+    elif len(pairs) and (pairs[:, 0] == FIXED_SOURCE).any():
+        raise InputError(f"source index {FIXED_SOURCE} (the fixed source) needs "
+                         "source_points")
+    indexed = pairs[:, 1:] if fixed else pairs
+    if len(pairs) and (indexed.min() < 0 or indexed.max() >= len(data)):
         raise InputError(f"pair indices must lie in [0, {len(data)}), got "
-                         f"{pairs.min()}..{pairs.max()}")
+                         f"{indexed.min()}..{indexed.max()}")
     seed, epoch, step = _count(seed, "seed"), _count(epoch, "epoch"), _count(step, "step")
     pairs = pairs.astype(np.int64)
-    source = data[pairs[:, 0]]
     target = data[pairs[:, 1]]
-    if augmentation:
+    if fixed:
+        source = np.repeat(source_points[None], len(pairs), axis=0)
+        if augmentation:
+            target = target.copy()
+            for i, t in enumerate(pairs[:, 1].tolist()):
+                rng = np.random.default_rng([_TAG_AUGMENT_TARGET, seed, epoch, step, i, t])
+                target[i] = augment(target[i], rng)
+    else:
+        source = data[pairs[:, 0]]
+    if augmentation and not fixed:
         source = source.copy()
         target = target.copy()
         for i, (s, t) in enumerate(pairs.tolist()):

@@ -5,6 +5,14 @@ shape; the full-resolution source is then bound to the predicted cage with the c
 exact MVC (:func:`cagekit.bind`, float64) and moved with the predicted deformed cage.
 ``refine=True`` then runs the per-pair optimisation of :func:`cagekit.deform` on the
 predicted cage, starting from its predicted deformation.
+
+A model trained with a fixed source (``cagekit train --fixed-source``) carries the
+template's normalised samples (``model.fixed_source``); :func:`predict_fixed_source` and
+:func:`deform_with_model` feed those as the source, exactly as in training. Frames: the
+source cage is in the template's normalised frame (``* fixed_source_scale +
+fixed_source_center`` of ``model.config`` maps it to the template's own frame), the
+deformed cage in the target's normalised frame (``* target scale + target centre``, from
+:func:`cagekit.normalize` of the target).
 """
 
 from __future__ import annotations
@@ -17,11 +25,12 @@ import torch
 from cagekit.coords import bind
 from cagekit.deformation import DeformResult, _as_pair
 from cagekit.deformation import deform as optimise
+from cagekit.errors import InputError
 from cagekit.geometry import normalize
 from cagekit.metrics import surface_samples
 from cagekit_learn.networks import NeuralCages
 
-__all__ = ["predict", "deform_with_model"]
+__all__ = ["predict", "predict_fixed_source", "deform_with_model"]
 
 
 def predict(model: NeuralCages, source_points, target_points) -> tuple[np.ndarray, np.ndarray]:
@@ -45,6 +54,42 @@ def predict(model: NeuralCages, source_points, target_points) -> tuple[np.ndarra
         out = model(s[None], t[None])
     return (out["source_cage"][0].double().cpu().numpy(),
             out["deformed_cage"][0].double().cpu().numpy())
+
+
+def predict_fixed_source(model: NeuralCages, target_points) -> tuple[np.ndarray, np.ndarray]:
+    """Source cage and deformed cage for a model trained with a fixed source.
+
+    Parameters
+    ----------
+    model : NeuralCages
+        Trained with ``--fixed-source`` (``model.fixed_source`` holds the template's
+        normalised samples, which are the source here).
+    target_points : (P, 3) array_like of float
+        Samples of the target normalised on its own (:func:`cagekit.normalize`). Under
+        the L2 alignment the model saw the vertex rows ``model.config.fixed_source_rows``
+        of its targets; taking the same rows of a target in correspondence matches
+        training best.
+
+    Returns
+    -------
+    source_cage, deformed_cage : (k, 3) float64
+        The source cage in the template's normalised frame (equal to the fixed cage when
+        there is one; ``* model.config.fixed_source_scale + fixed_source_center`` maps it
+        to the template's own frame) and the deformed cage in the target's normalised
+        frame (``* target scale + target centre`` maps it back); faces ``model.cage_f``.
+
+    Raises
+    ------
+    InputError
+        The model has no fixed source, or the target points are not (P, 3).
+    """
+    if getattr(model, "fixed_source", None) is None:
+        raise InputError("the model was not trained with a fixed source (cagekit train "
+                         "--fixed-source); use predict(model, source_points, target_points)")
+    target = np.asarray(target_points, dtype=np.float64)
+    if target.ndim != 2 or target.shape[1] != 3 or len(target) < 1:
+        raise InputError(f"target points must have shape (P, 3), got {target.shape}")
+    return predict(model, model.fixed_source.cpu().numpy(), target)
 
 
 def deform_with_model(model: NeuralCages, source, target, *, points: int | None = None,
@@ -73,6 +118,16 @@ def deform_with_model(model: NeuralCages, source, target, *, points: int | None 
     DeformResult
         ``method`` is ``"learned"`` or ``"learned+refine"``; vertices in the target's
         frame and units; the cages in the source's and target's frames.
+
+    Notes
+    -----
+    A model trained with a fixed source gets its stored template samples as the source
+    (not samples of ``source``), so ``source`` should be that template (or a mesh with
+    the same normalised frame, a finer version of it say): the predicted cage is placed
+    around ``source`` normalised on its own. The target's samples are then its vertex
+    rows ``model.config.fixed_source_rows`` when the model was trained with them (L2
+    alignment) and the target has the template's vertex count, as in training; surface
+    samples otherwise.
     """
     start = time.perf_counter()
     points = 1024 if points is None else int(points)
@@ -80,9 +135,19 @@ def deform_with_model(model: NeuralCages, source, target, *, points: int | None 
     Vt, Ft = _as_pair(target, "target")
     Vs_n, cs, ss = normalize(Vs)
     Vt_n, ct, st = normalize(Vt)
-    S = surface_samples(Vs_n, Fs, points, seed=seed)
-    T = surface_samples(Vt_n, Ft, points, seed=seed + 1)
-    cage_n, deformed_n = predict(model, S, T)
+    fixed = getattr(model, "fixed_source", None)
+    config = getattr(model, "config", None)
+    rows = getattr(config, "fixed_source_rows", None)
+    if fixed is not None and rows is not None and len(Vt) == getattr(
+            config, "fixed_source_vertex_count", None):
+        T = Vt_n[np.asarray(rows, dtype=np.int64)]
+    else:
+        T = surface_samples(Vt_n, Ft, points, seed=seed + 1)
+    if fixed is not None:
+        cage_n, deformed_n = predict_fixed_source(model, T)
+    else:
+        S = surface_samples(Vs_n, Fs, points, seed=seed)
+        cage_n, deformed_n = predict(model, S, T)
     cage_f = model.cage_f.cpu().numpy()
     cage_v, deformed_v = cage_n * ss + cs, deformed_n * st + ct
     if refine:

@@ -28,6 +28,12 @@ Decisions (ours, where the paper is silent)
   itself, nothing learned), ``source-invariant`` (the template plus one learned offset
   per vertex, the same for every source). ``fixed_cage`` replaces N_c by a given cage,
   for a collection that shares one source (a template character).
+- A model trained with a **fixed source** (``cagekit train --fixed-source``) keeps the
+  template's normalised samples in its config (``fixed_source_points``, with the vertex
+  ``fixed_source_rows`` under the L2 alignment, the template's vertex count and its
+  normalisation ``fixed_source_center``/``fixed_source_scale``); the model exposes them as
+  the non-persistent buffer :attr:`NeuralCages.fixed_source` (the state dict is unchanged),
+  and inference feeds them as the source (:mod:`cagekit_learn.inference`).
 """
 
 from __future__ import annotations
@@ -60,7 +66,21 @@ class ModelConfig:
     decoder_widths : list of int
         Hidden widths of the two decoders' MLPs.
     fixed_cage_v, fixed_cage_f : list or None
-        A fixed source cage (nested lists), replacing N_c.
+        A fixed source cage (nested lists), replacing N_c. Its vertices are in the
+        normalised source frame (with a fixed source: the template normalised on its own).
+    fixed_source_points : list or None
+        (P, 3) nested lists: the normalised samples of the fixed source (template) the
+        model was trained with, or None for a model trained on pairs of shapes.
+    fixed_source_rows : list or None
+        (P,) vertex rows of the template behind ``fixed_source_points`` (L2 alignment on
+        shapes in correspondence), else None (surface samples).
+    fixed_source_vertex_count : int or None
+        The template's vertex count.
+    fixed_source_center : list or None
+    fixed_source_scale : float or None
+        The template's normalisation: ``normalised = (V - center) / scale``, so a cage of
+        the normalised source frame maps back to the template's own frame by
+        ``cage * scale + center``.
     """
 
     bottleneck: int = 256
@@ -70,6 +90,11 @@ class ModelConfig:
     decoder_widths: list = field(default_factory=lambda: [256, 128, 64])
     fixed_cage_v: list | None = None
     fixed_cage_f: list | None = None
+    fixed_source_points: list | None = None
+    fixed_source_rows: list | None = None
+    fixed_source_vertex_count: int | None = None
+    fixed_source_center: list | None = None
+    fixed_source_scale: float | None = None
 
     def to_dict(self) -> dict:
         """Plain Python values only (so a checkpoint loads with ``weights_only=True``)."""
@@ -172,6 +197,9 @@ class NeuralCages(nn.Module):
         The faces of every predicted cage (the template's, or the fixed cage's).
     template : (k, 3) buffer
         The template cage's vertices (N_c's starting point).
+    fixed_source : (P, 3) float32 buffer or None
+        The fixed source's normalised samples (``config.fixed_source_points``), not part
+        of the state dict; None for a model trained on pairs of shapes.
 
     Examples
     --------
@@ -196,6 +224,17 @@ class NeuralCages(nn.Module):
             v = v * config.template_radius
         self.register_buffer("template", torch.as_tensor(v, dtype=torch.float32))
         self.register_buffer("cage_f", torch.as_tensor(f, dtype=torch.int64))
+        fixed = None
+        if config.fixed_source_points is not None:
+            fixed = torch.as_tensor(np.asarray(config.fixed_source_points, dtype=np.float32))
+            if fixed.ndim != 2 or fixed.shape[1] != 3 or len(fixed) < 1:
+                raise ValueError(f"fixed_source_points must be (P, 3), got "
+                                 f"{tuple(fixed.shape)}")
+            rows = config.fixed_source_rows
+            if rows is not None and len(rows) != len(fixed):
+                raise ValueError(f"{len(rows)} fixed_source_rows for {len(fixed)} "
+                                 "fixed_source_points")
+        self.register_buffer("fixed_source", fixed, persistent=False)
         self.encoder = PointNetEncoder(config.bottleneck)
         widths = list(config.decoder_widths)
         self.nc_decoder = None

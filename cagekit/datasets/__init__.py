@@ -1,5 +1,5 @@
 """Shapes the project makes itself: procedural families for tests, demos and training."""
 
-from cagekit.datasets import synthetic
+from cagekit.datasets import humanoid, synthetic
 
-__all__ = ["synthetic"]
+__all__ = ["humanoid", "synthetic"]

@@ -1,0 +1,231 @@
+"""Deformation transfer to novel characters (apps.deformation_transfer, apps.humanoid_data)."""
+
+import json
+
+import numpy as np
+import pytest
+
+pytest.importorskip("torch")
+
+from click.testing import CliRunner  # noqa: E402
+
+from apps import deformation_transfer as dt  # noqa: E402
+from apps import humanoid_data  # noqa: E402
+from cagekit import io  # noqa: E402
+from cagekit.coords import bind  # noqa: E402
+from cagekit.datasets import humanoid  # noqa: E402
+from cagekit.errors import InputError  # noqa: E402
+from cagekit_learn.consistency import Similarity  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory):
+    """A small data set: template, cage, one novel body, two poses with ground truth."""
+    out = tmp_path_factory.mktemp("humanoid")
+    summary = humanoid_data.write(out, poses=2, train_poses=2, landmarks=40, cage_faces=100,
+                                  resolution=0.5, bodies=("stocky",))
+    return out, summary
+
+
+def _run(args):
+    result = CliRunner().invoke(dt.main, [str(a) for a in args],
+                                prog_name="python -m apps.deformation_transfer")
+    return result
+
+
+def _inputs(out):
+    return [out / "template.obj", out / "template_cage.obj", out / "template_landmarks.json",
+            out / "characters" / "stocky.obj", out / "characters" / "stocky_landmarks.json"]
+
+
+def test_data_set_is_consistent(data):
+    out, summary = data
+    Vt, Ft = io.load_mesh(out / "template.obj")
+    Vc, Fc = io.load_mesh(out / "characters" / "stocky.obj")
+    V0, F0 = io.load_mesh(out / "poses" / "pose_000.obj")
+    G0, _ = io.load_mesh(out / "truth" / "stocky" / "pose_000.obj")
+    assert np.array_equal(Ft, Fc) and np.array_equal(Ft, F0)
+    assert len(Vt) == len(Vc) == len(V0) == len(G0) == summary["template_vertices"]
+    assert not np.allclose(V0, Vt) and not np.allclose(G0, Vc)
+    # the ground truth is the character posed with the test pose's rotations
+    pose = humanoid.random_pose(humanoid_data.TEST_POSE_SEED)
+    np.testing.assert_allclose(G0, humanoid.rig("stocky", resolution=0.5).pose(pose),
+                               atol=1e-9)
+    marks = io.load_landmarks(out / "template_landmarks.json")
+    assert len(marks) == 40
+    rig = humanoid.rig("template", resolution=0.5)
+    for label, xyz in marks.items():
+        np.testing.assert_allclose(xyz, rig.vertices[rig.landmarks[label]], atol=1e-12)
+    assert len(list((out / "train").iterdir())) == 2
+    cage_v, cage_f = io.load_mesh(out / "template_cage.obj")
+    from cagekit.cage import cage_encloses
+
+    assert cage_encloses(Vt, cage_v, cage_f)
+
+
+def test_end_to_end_transfer_beats_the_rest_pose(data, tmp_path):
+    out, _ = data
+    result = _run([*_inputs(out), out / "poses", "-o", tmp_path / "res", "--json",
+                   "--grid", tmp_path / "grid.png"])
+    assert result.exit_code == 0, result.output
+    report = json.loads(result.stdout)
+    assert report["landmarks"]["matched"] == 40
+    assert report["landmarks"]["template_only"] == [] == report["landmarks"]["character_only"]
+    assert len(report["landmark_errors"]) == 40 and len(report["poses"]) == 2
+    assert report["consistency"]["loss"] < report["consistency"]["initial_loss"]
+    assert json.loads((tmp_path / "res" / "report.json").read_text())["mode"] == "classical"
+    assert (tmp_path / "grid.png").stat().st_size > 10_000
+    Vc, Fc = io.load_mesh(out / "characters" / "stocky.obj")
+    height = np.ptp(Vc[:, 1])
+    for name in ("pose_000", "pose_001"):
+        X, F = io.load_mesh(tmp_path / "res" / f"{name}.obj")
+        truth, _ = io.load_mesh(out / "truth" / "stocky" / f"{name}.obj")
+        assert np.array_equal(F, Fc)
+        rest = np.linalg.norm(Vc - truth, axis=1).mean() / height
+        err = np.linalg.norm(X - truth, axis=1).mean() / height
+        assert err < rest / 3, (err, rest)
+    cage_v, cage_f = io.load_mesh(tmp_path / "res" / "character_cage.obj")
+    template_cage_v, template_cage_f = io.load_mesh(out / "template_cage.obj")
+    assert np.array_equal(cage_f, template_cage_f) and cage_v.shape == template_cage_v.shape
+
+
+def _character(out, body="stocky"):
+    Vt, Ft = io.load_mesh(out / "template.obj")
+    cage_v, cage_f = io.load_mesh(out / "template_cage.obj")
+    marks_t = io.load_landmarks(out / "template_landmarks.json")
+    Vc, Fc = io.load_mesh(out / "characters" / f"{body}.obj")
+    marks_c = io.load_landmarks(out / "characters" / f"{body}_landmarks.json")
+    return (Vt, Ft), (cage_v, cage_f), marks_t, (Vc, Fc), marks_c
+
+
+def test_undeformed_cage_gives_the_rest_pose_back(data):
+    (Vt, Ft), (cage_v, cage_f), marks_t, (Vc, Fc), marks_c = _character(data[0])
+    char = dt.fit_character(Vt, cage_v, cage_f, marks_t, Vc, Fc, marks_c, max_evaluations=50)
+    np.testing.assert_allclose(dt.transfer(char, cage_v), Vc, atol=1e-9)
+
+
+def test_similar_copy_of_the_template_moves_like_the_template(data):
+    (Vt, Ft), (cage_v, cage_f), marks_t, _, _ = _character(data[0])
+    q, r = np.linalg.qr(np.random.default_rng(3).normal(size=(3, 3)))
+    R = q * np.sign(np.diag(r))
+    R = R if np.linalg.det(R) > 0 else -R
+    A = Similarity(1.6, R, np.array([2.0, -1.0, 0.5]))
+    Vc = A.apply(Vt)
+    marks_c = {k: A.apply(v[None])[0] for k, v in marks_t.items()}
+    char = dt.fit_character(Vt, cage_v, cage_f, marks_t, Vc, Ft, marks_c, align="similarity")
+    assert char.fit.converged and char.fit.loss < 1e-12
+    np.testing.assert_allclose(char.cage_v, A.apply(cage_v), atol=1e-8)
+    Vp, Fp = io.load_mesh(data[0] / "poses" / "pose_000.obj")
+    C = dt.template_cage_classical((Vt, Ft), (cage_v, cage_f), (Vp, Fp))
+    expected = A.apply(bind(Vt, cage_v, cage_f).weights @ C)
+    np.testing.assert_allclose(dt.transfer(char, C), expected, atol=1e-8)
+
+
+def test_classical_template_fit_is_close_to_the_pose(data):
+    (Vt, Ft), (cage_v, cage_f), _, _, _ = _character(data[0])
+    Vp, Fp = io.load_mesh(data[0] / "poses" / "pose_000.obj")
+    C = dt.template_cage_classical((Vt, Ft), (cage_v, cage_f), (Vp, Fp))
+    X = bind(Vt, cage_v, cage_f).weights @ C
+    height = np.ptp(Vt[:, 1])
+    moved = np.linalg.norm(Vp - Vt, axis=1).mean() / height
+    assert np.linalg.norm(X - Vp, axis=1).mean() / height < moved / 4
+
+
+def test_unmatched_labels_are_reported(data, tmp_path):
+    out, _ = data
+    marks = io.load_landmarks(out / "characters" / "stocky_landmarks.json")
+    first = next(iter(marks))
+    marks["extra_point"] = marks.pop(first)
+    io.save_landmarks(tmp_path / "marks.csv", marks)
+    inputs = _inputs(out)
+    inputs[4] = tmp_path / "marks.csv"
+    result = _run([*inputs, out / "poses" / "pose_000.obj", "-o", tmp_path / "res"])
+    assert result.exit_code == 0, result.output
+    report = json.loads((tmp_path / "res" / "report.json").read_text())
+    assert report["landmarks"] == {"matched": 39, "template_only": [first],
+                                   "character_only": ["extra_point"]}
+    assert "extra_point" in result.stderr and first in result.stderr
+
+
+def test_too_few_matching_landmarks_is_one_clear_line(data, tmp_path):
+    out, _ = data
+    marks = io.load_landmarks(out / "characters" / "stocky_landmarks.json")
+    io.save_landmarks(tmp_path / "few.json", dict(list(marks.items())[:3]))
+    inputs = _inputs(out)
+    inputs[4] = tmp_path / "few.json"
+    result = _run([*inputs, out / "poses", "-o", tmp_path / "res"])
+    assert result.exit_code == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "few.json" in lines[0] and "at least 4" in lines[0]
+    assert not (tmp_path / "res").exists()
+
+
+@pytest.mark.parametrize("content, problem", [
+    ("1\nPicked 0 0.1 0.2 0.7 nose 0 0\n", "column"),
+    ("3\nPicked 0 0.1 0.2 0.7 nose 0 0 0\n", "3 landmarks but 1"),
+    ('{"nose": [0, 1]}', ""),
+    ("", "empty"),
+])
+def test_bad_landmark_files_exit_2_naming_the_file(data, tmp_path, content, problem):
+    out, _ = data
+    ext = ".json" if content.startswith("{") else ".picked"
+    bad = tmp_path / f"bad{ext}"
+    bad.write_text(content)
+    inputs = _inputs(out)
+    inputs[2] = bad
+    result = _run([*inputs, out / "poses", "-o", tmp_path / "res"])
+    assert result.exit_code == 2, result.output
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and str(bad) in lines[0] and problem in lines[0]
+    assert "Traceback" not in result.output
+
+
+def test_never_overwrites_an_input(data, tmp_path):
+    out, _ = data
+    pose = tmp_path / "pose_000.obj"
+    pose.write_bytes((out / "poses" / "pose_000.obj").read_bytes())
+    before = pose.read_bytes()
+    result = _run([*_inputs(out), pose, "-o", tmp_path])
+    assert result.exit_code == 2 and "refusing to overwrite" in result.stderr
+    assert pose.read_bytes() == before
+
+
+def test_model_without_fixed_source_is_refused(data):
+    (Vt, Ft), (cage_v, cage_f), _, _, _ = _character(data[0])
+    from cagekit_learn.networks import ModelConfig, NeuralCages
+
+    model = NeuralCages(ModelConfig(bottleneck=8, decoder_widths=[8]))
+    with pytest.raises(InputError, match="fixed source"):
+        dt.template_cage_learned(model, Vt, cage_v, (Vt, Ft))
+
+
+def test_landmark_names_spread_and_bounds():
+    names = humanoid_data.landmark_names(80)
+    assert len(set(names)) == 80 and set(names) <= set(humanoid.LANDMARK_NAMES)
+    every = humanoid.LANDMARK_NAMES
+    assert names[0] == every[0] and names[-1] == every[-1]  # the whole list is spanned
+    assert humanoid_data.landmark_names(len(every)) == list(every)
+    with pytest.raises(InputError):
+        humanoid_data.landmark_names(3)
+
+
+def test_grid_in_a_missing_folder_is_refused_before_any_work(data, tmp_path):
+    out, _ = data
+    result = _run([*_inputs(out), out / "poses", "-o", tmp_path / "res",
+                   "--grid", tmp_path / "nope" / "grid.png"])
+    assert result.exit_code == 2 and "grid.png" in result.stderr
+    assert not (tmp_path / "res").exists()
+
+
+def test_match_landmarks_pairs_by_label_and_reports_the_rest():
+    a = {"nose": [0, 1, 2], "chin": [0, 0, 1], "l_eye": [1, 1, 1], "r_eye": [-1, 1, 1],
+         "ear": [2, 0, 0]}
+    b = {"r_eye": [-2, 2, 2], "chin": [0, 0, 2], "nose": [0, 2, 4], "l_eye": [2, 2, 2],
+         "tail": [9, 9, 9]}
+    m = io.match_landmarks(a, b)
+    assert m.labels == ["nose", "chin", "l_eye", "r_eye"]  # the first set's order
+    np.testing.assert_array_equal(m.target, 2 * m.source)
+    assert m.source_only == ["ear"] and m.target_only == ["tail"]
+    with pytest.raises(InputError, match=r"a\.json and b\.csv share 4 landmark label\(s\); "
+                                         r"at least 5"):
+        io.match_landmarks(a, b, minimum=5, source_name="a.json", target_name="b.csv")
