@@ -29,8 +29,16 @@ Decisions (ours)
 - The rest poses are aligned by bounding box and height (``--align box``, default, no
   rotation) or by the similarity that best maps the template's landmarks onto the
   character's (``--align similarity``, for a character turned or lying differently).
+- The template's cage offsets are mapped by the alignment's linear part ``A`` before
+  they are added (the issue's ``C_s' + (C_(s->t) - C_s)`` when the two characters have
+  the same height; a character 1.3 times taller moves 1.3 times as far, as its own
+  limbs are 1.3 times longer).
 - Landmark labels found in one file only are listed in the report (and on stderr), never
   dropped silently; fewer than 4 shared labels is an error.
+- Every input (poses and model included) is read and checked before the cage fit; the
+  outputs are written at the end, each atomically. The report checks the fitted cage
+  (signed volume, self-intersections, character vertices outside it) and each problem
+  is also a warning on stderr.
 
 Usage::
 
@@ -52,18 +60,26 @@ from pathlib import Path
 
 import click
 import numpy as np
+from tqdm import tqdm
 
 from cagekit import io
 from cagekit.cage import check_cage
-from cagekit.cli import Command, _debug_option, _emit_json, _json_option, _same_file
+from cagekit.cli import (
+    Command,
+    _debug_option,
+    _emit_json,
+    _json_option,
+    _progress_enabled,
+    _same_file,
+)
 from cagekit.coords import bind
 from cagekit.deformation import deform
 from cagekit.errors import InputError
 from cagekit.geometry import as_vertices, cotangent_laplacian, normalize
 
-__all__ = ["CharacterCage", "fit_character", "template_cage_classical",
-           "template_cage_learned", "transfer_cage", "transfer", "render_grid",
-           "SMOOTHNESS"]
+__all__ = ["CharacterCage", "fit_character", "corresponds", "check_model",
+           "check_fitted_cage", "template_cage_classical", "template_cage_learned",
+           "transfer_cage", "transfer", "render_grid", "SMOOTHNESS"]
 
 #: weight of the cage-Laplacian term of the classical template fit (the cage's own units)
 SMOOTHNESS = 1e-2
@@ -127,17 +143,28 @@ def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
     -------
     CharacterCage
     """
-    from cagekit_learn.consistency import box_alignment, fit_cage_by_consistency
+    from cagekit_learn.consistency import (
+        box_alignment,
+        fit_cage_by_consistency,
+        similarity_alignment,
+    )
 
     match = io.match_landmarks(template_landmarks, character_landmarks,
                                source_name=template_name, target_name=character_name)
     cage_v = as_vertices(cage_v, "cage_v")
     cage_f = check_cage(cage_v, cage_f)
     character_v = as_vertices(character_v, "character_v")
+    names = f"{template_name or 'the template'} and {character_name or 'the character'}"
     if align == "box":
-        alignment = box_alignment(template_v, character_v)
+        try:
+            alignment = box_alignment(template_v, character_v)
+        except InputError as exc:
+            raise InputError(f"cannot align the rest poses of {names}: {exc}") from None
     elif align == "similarity":
-        alignment = "similarity"
+        try:
+            alignment = similarity_alignment(match.source, match.target)
+        except InputError as exc:
+            raise InputError(f"cannot align the landmarks of {names}: {exc}") from None
     else:
         raise InputError(f"align must be 'box' or 'similarity', got {align!r}")
     fit = fit_cage_by_consistency(cage_v, cage_f, match.source, match.target,
@@ -146,6 +173,63 @@ def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
     return CharacterCage(vertices=character_v, faces=np.asarray(character_f, np.int64),
                          template_cage_v=cage_v, cage_v=fit.cage_v, cage_f=cage_f, fit=fit,
                          match=match, weights=weights)
+
+
+def corresponds(template, pose) -> bool:
+    """True if ``pose`` shares ``template``'s vertex order: same vertex count and, when
+    both have faces, the same faces (poses of one rigged character)."""
+    Vs, Fs = template[0], template[1] if len(template) > 1 else None
+    Vp, Fp = pose[0], pose[1] if len(pose) > 1 else None
+    if len(Vs) != len(Vp):
+        return False
+    if Fs is not None and Fp is not None and len(Fs) and len(Fp):
+        return np.array_equal(np.asarray(Fs), np.asarray(Fp))
+    return True
+
+
+def check_model(model, template_v, cage_v, path=None) -> None:
+    """Raise :class:`InputError` (naming ``path``) unless ``model`` was trained with
+    ``template_v`` as its fixed source and ``cage_v`` as its fixed cage."""
+    config = model.config
+    if config.fixed_cage_v is None or getattr(config, "fixed_source_points", None) is None:
+        raise InputError("the model was not trained with a fixed source and source cage "
+                         "(cagekit train --fixed-source TEMPLATE --source-cage CAGE)", path)
+    _, cs, ss = normalize(template_v)
+    expected = (as_vertices(cage_v, "cage_v") - cs) / ss
+    trained = np.asarray(config.fixed_cage_v, dtype=np.float64)
+    if trained.shape != expected.shape or not np.allclose(trained, expected, atol=1e-6):
+        raise InputError("the model was trained with another template cage (or another "
+                         "template)", path)
+
+
+def check_fitted_cage(character: CharacterCage) -> dict:
+    """What could be wrong with a fitted character cage, for the report.
+
+    Returns
+    -------
+    dict
+        ``volume`` (signed, > 0 for an outward cage), ``self_intersecting_faces`` (count,
+        pymeshlab), ``outside`` (fraction of the character's vertices with winding number
+        below 0.5: there the coordinates extrapolate), and ``problems``: one line for
+        each of a non-positive volume, self-intersections and vertices outside.
+    """
+    from cagekit.cage import signed_volume, winding_numbers
+    from cagekit.fitting import _self_intersecting_faces
+
+    volume = float(signed_volume(character.cage_v, character.cage_f))
+    crossing = int(_self_intersecting_faces(character.cage_v, character.cage_f).sum())
+    outside = float(np.mean(winding_numbers(character.vertices, character.cage_v,
+                                            character.cage_f) < 0.5))
+    problems = []
+    if volume <= 0:
+        problems.append(f"is inverted (signed volume {volume:.3g})")
+    if crossing:
+        problems.append(f"intersects itself ({crossing} faces)")
+    if outside > 0:
+        problems.append(f"leaves {100 * outside:.2f}% of the character's vertices outside "
+                        "(their coordinates extrapolate)")
+    return {"volume": volume, "self_intersecting_faces": crossing, "outside": outside,
+            "problems": problems}
 
 
 def template_cage_classical(template, cage, pose, *, seed: int = 0,
@@ -160,8 +244,8 @@ def template_cage_classical(template, cage, pose, *, seed: int = 0,
     cage : (cage_v, cage_f) pair
         ``C_s`` in the template's frame.
     pose : (V, F) pair
-        The template in the target pose. With the template's vertex count it is taken to
-        share its vertex order, and the cage is the linear least-squares fit
+        The template in the target pose. When it :func:`corresponds` to the template
+        (same vertex count and faces), the cage is the linear least-squares fit
         ``min_C |W C - V_pose|^2 + smoothness |L (C - C_s)|^2`` (``W`` the template's
         mean value coordinates, ``L`` the cage's cotangent Laplacian): the L2 alignment
         with every vertex as a correspondence, solved exactly. Otherwise the pose is
@@ -179,7 +263,7 @@ def template_cage_classical(template, cage, pose, *, seed: int = 0,
     """
     Vs, Vp = np.asarray(template[0], np.float64), np.asarray(pose[0], np.float64)
     cage_v, cage_f = as_vertices(cage[0], "cage_v"), cage[1]
-    if len(Vs) != len(Vp):
+    if not corresponds(template, pose):
         result = deform(template, pose, cage=cage, method="cage",
                         max_evaluations=max_evaluations, seed=seed)
         return result.deformed_cage_v
@@ -207,8 +291,8 @@ def template_cage_learned(model, template_v, cage_v, pose) -> np.ndarray:
         ``C_s``; must be the cage the model was trained with.
     pose : (V, F) pair
         The template in the target pose; sampled at the training's vertex rows when it
-        has the template's vertex count and the model was trained with them (L2),
-        otherwise on its surface.
+        has the trained template's vertex count and the model was trained with them
+        (L2), otherwise on its surface.
 
     Returns
     -------
@@ -224,18 +308,11 @@ def template_cage_learned(model, template_v, cage_v, pose) -> np.ndarray:
     from cagekit_learn.inference import predict_fixed_source
 
     config = model.config
-    if config.fixed_cage_v is None or getattr(config, "fixed_source_points", None) is None:
-        raise InputError("the model was not trained with a fixed source and source cage "
-                         "(cagekit train --fixed-source TEMPLATE --source-cage CAGE)")
-    _, cs, ss = normalize(template_v)
-    expected = (as_vertices(cage_v, "cage_v") - cs) / ss
-    trained = np.asarray(config.fixed_cage_v, dtype=np.float64)
-    if trained.shape != expected.shape or not np.allclose(trained, expected, atol=1e-6):
-        raise InputError("the model was trained with another template cage")
+    check_model(model, template_v, cage_v)
     Vp, Fp = np.asarray(pose[0], np.float64), np.asarray(pose[1])
     Vp_n, cp, sp = normalize(Vp)
     rows = getattr(config, "fixed_source_rows", None)
-    if rows is not None and len(Vp) == len(template_v):
+    if rows is not None and len(Vp) == getattr(config, "fixed_source_vertex_count", None):
         target = Vp_n[np.asarray(rows, dtype=np.int64)]
     else:
         target = surface_samples(Vp_n, Fp, len(config.fixed_source_points), seed=1)
@@ -428,7 +505,11 @@ def main(template, template_cage, template_landmarks, character, character_landm
     marks_t = io.load_landmarks(template_landmarks)
     Vc, Fc = io.load_mesh(character)
     marks_c = io.load_landmarks(character_landmarks)
-    model = _load_model(model_path) if model_path else None
+    pose_meshes = [io.load_mesh(path) for path in pose_paths]  # every input read first
+    model = None
+    if model_path:
+        model = _load_model(model_path)
+        check_model(model, Vt, cage_v, model_path)
     loaded = time.perf_counter()
     char = fit_character(Vt, cage_v, cage_f, marks_t, Vc, Fc, marks_c, align=align,
                          max_evaluations=max_evaluations, template_name=template_landmarks,
@@ -439,26 +520,29 @@ def main(template, template_cage, template_landmarks, character, character_landm
             click.echo(f"note: {len(label_set)} landmark(s) only in {where}, not used: "
                        f"{', '.join(label_set[:8])}{' ...' if len(label_set) > 8 else ''}",
                        err=True)
+    cage_check = check_fitted_cage(char)
+    for problem in cage_check["problems"]:
+        click.echo(f"warning: the fitted character cage {problem}", err=True)
     fitted = time.perf_counter()
-    out.mkdir(parents=True, exist_ok=True)
-    io.save_mesh(out / "character_cage.obj", char.cage_v, char.cage_f)
-    rows, shown_t, shown_c = [], [], []
-    for path, name in zip(pose_paths, names):
+    weights = bind(Vt, cage_v, cage_f).weights if model is None else None
+    results = []
+    for (Vp, Fp) in tqdm(pose_meshes, desc="poses", unit="pose", disable=not _progress_enabled(),
+                         leave=False):
         t0 = time.perf_counter()
-        Vp, Fp = io.load_mesh(path)
         if model is None:
             deformed = template_cage_classical((Vt, Ft), (cage_v, cage_f), (Vp, Fp),
-                                               seed=seed)
+                                               seed=seed, weights=weights)
         else:
             deformed = template_cage_learned(model, Vt, cage_v, (Vp, Fp))
-        X = transfer(char, deformed)
+        results.append((transfer(char, deformed), time.perf_counter() - t0))
+    out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for path, name, (X, seconds) in zip(pose_paths, names, results):
         io.save_mesh(out / name, X, char.faces)
-        rows.append({"pose": str(path), "output": str(out / name),
-                     "seconds": time.perf_counter() - t0})
-        shown_t.append((Vp, Fp))
-        shown_c.append((X, char.faces))
+        rows.append({"pose": str(path), "output": str(out / name), "seconds": seconds})
+    io.save_mesh(out / "character_cage.obj", char.cage_v, char.cage_f)
     if grid_path is not None:
-        render_grid(grid_path, [shown_t[:8], shown_c[:8]],
+        render_grid(grid_path, [pose_meshes[:8], [(X, char.faces) for X, _ in results[:8]]],
                     titles=[Path(p).stem for p in pose_paths[:8]],
                     labels=["template", "transferred character"])
     fit = char.fit
@@ -474,6 +558,7 @@ def main(template, template_cage, template_landmarks, character, character_landm
                         "tolerance": fit.tolerance, "evaluations": fit.evaluations,
                         "seconds": fit.seconds, "alignment": fit.alignment.to_dict()},
         "landmark_errors": dict(zip(char.match.labels, fit.landmark_errors.tolist())),
+        "character_cage": cage_check,
         "poses": rows,
         "seconds": {"load": loaded - start, "fit": fitted - loaded,
                     "transfer": time.perf_counter() - fitted,

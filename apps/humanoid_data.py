@@ -11,7 +11,7 @@ the ground truth that judges a transfer::
     OUT_DIR/characters/<body>_landmarks.json
     OUT_DIR/poses/pose_000.obj ...       the template in --poses test poses
     OUT_DIR/truth/<body>/pose_000.obj    each body posed with the same joint rotations
-    OUT_DIR/train/pose_0000.obj ...      the template in --train-poses other poses (PLY)
+    OUT_DIR/train/pose_0000.ply ...      the template in --train-poses other poses
 
 Test pose ``i`` is ``random_pose(TEST_POSE_SEED + i)``, training pose ``i`` is
 ``random_pose(seed + i)`` (seeds below ``TEST_POSE_SEED``), so the two never share a pose.
@@ -106,10 +106,10 @@ def write(out_dir, *, poses: int = 20, train_poses: int = 1000, seed: int = 0,
     """
     if seed < 0 or seed + train_poses > TEST_POSE_SEED:
         raise InputError(f"--seed plus --train-poses must stay in [0, {TEST_POSE_SEED}]")
+    names = landmark_names(landmarks)
     out = Path(out_dir)
     for folder in ("characters", "poses", "train", *(f"truth/{b}" for b in bodies)):
         (out / folder).mkdir(parents=True, exist_ok=True)
-    names = landmark_names(landmarks)
     template = humanoid.rig("template", resolution=resolution)
     F = template.faces
     io.save_mesh(out / "template.obj", template.vertices, F)

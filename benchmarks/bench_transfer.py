@@ -161,7 +161,7 @@ def main(argv=None) -> dict:
         if body == bodies[-1]:
             grid = shown
 
-    print(f"\n{len(bodies)} bodies x {len(poses)} poses, {args.landmarks} landmarks, "
+    print(f"\n{len(bodies)} bodies x {len(poses)} poses, {manifest['landmarks']} landmarks, "
           f"template cage {len(cage_v)} vertices / {len(cage_f)} faces; means")
     print(f"{'method':<10} {'error % height':>15} {'dCotLap x1e3':>13} {'s/pose':>8}")
     summary = {}

@@ -130,14 +130,16 @@ def similarity_alignment(P, Q) -> Similarity:
     var = float((Pc ** 2).sum())
     if var <= 0.0:
         raise InputError("the landmarks all lie at one point: no scale can be fitted")
+    if np.linalg.svd(Pc, compute_uv=False)[1] <= 1e-9 * np.sqrt(var):
+        raise InputError("the landmarks are collinear: the rotation about their line "
+                         "cannot be fitted")
     U, S, Vt = np.linalg.svd(Qc.T @ Pc)
     D = np.eye(3)
     D[2, 2] = np.sign(np.linalg.det(U @ Vt)) or 1.0
     R = U @ D @ Vt
     scale = float((S * np.diag(D)).sum() / var)
     if scale <= 0.0:
-        raise InputError("the landmarks are degenerate (collinear): no rotation can be "
-                         "fitted")
+        raise InputError("the target landmarks are degenerate: no similarity fits them")
     return Similarity(scale, R, mq - scale * R @ mp)
 
 

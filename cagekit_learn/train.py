@@ -356,15 +356,17 @@ def _fixed_source_cache(net, source, knn):
         return None
     key = (source.shape[0], source.dtype, source.device, knn)
     cache = net.__dict__.setdefault("_fixed_source_terms", {})
-    if key not in cache:
+    entry = cache.get(key)
+    if entry is None or not (torch.equal(entry[0], fixed) and torch.equal(entry[1], net.template)):
+        # (re)computed when the source or the cage changed (load_state_dict, edits)
         with torch.no_grad():
             W = mean_value_coordinates(source, net.template.to(source.dtype), net.cage_f)
             ref = None
             if knn is not None:
                 index = losses.knn_neighborhoods(source, k=min(knn, source.shape[1]))
                 ref = losses.shape_reference(source, index)
-        cache[key] = (W, ref)
-    return cache[key]
+        entry = cache[key] = (fixed.clone(), net.template.clone(), W, ref)
+    return entry[2], entry[3]
 
 
 def _template_partners(net, axis):

@@ -318,6 +318,13 @@ def test_cached_source_terms_equal_the_uncached_loss(run_dir, shapes, monkeypatc
     plain, plain_terms = training_loss(model, source, target, config)
     assert torch.equal(cached, plain) and torch.equal(cached_again, plain)
     assert terms == plain_terms and terms["p2f"] > 0
+    monkeypatch.undo()
     # a source that is not the fixed one is never served from the cache
     other = source + 0.01
     assert train_module._fixed_source_cache(model, other, 16) is None
+    # a changed cage (load_state_dict, an edit) is noticed: the weights are recomputed
+    W_before = train_module._fixed_source_cache(model, source, 16)[0]
+    with torch.no_grad():
+        model.template.mul_(1.05)
+    W_after = train_module._fixed_source_cache(model, source, 16)[0]
+    assert not torch.equal(W_before, W_after)

@@ -73,6 +73,9 @@ def test_end_to_end_transfer_beats_the_rest_pose(data, tmp_path):
     assert report["landmarks"]["template_only"] == [] == report["landmarks"]["character_only"]
     assert len(report["landmark_errors"]) == 40 and len(report["poses"]) == 2
     assert report["consistency"]["loss"] < report["consistency"]["initial_loss"]
+    cage = report["character_cage"]
+    assert cage["volume"] > 0 and cage["self_intersecting_faces"] == 0
+    assert len(cage["problems"]) == (cage["outside"] > 0)
     assert json.loads((tmp_path / "res" / "report.json").read_text())["mode"] == "classical"
     assert (tmp_path / "grid.png").stat().st_size > 10_000
     Vc, Fc = io.load_mesh(out / "characters" / "stocky.obj")
@@ -98,10 +101,15 @@ def _character(out, body="stocky"):
     return (Vt, Ft), (cage_v, cage_f), marks_t, (Vc, Fc), marks_c
 
 
-def test_undeformed_cage_gives_the_rest_pose_back(data):
+def test_cage_offsets_are_scaled_by_the_alignment(data):
     (Vt, Ft), (cage_v, cage_f), marks_t, (Vc, Fc), marks_c = _character(data[0])
     char = dt.fit_character(Vt, cage_v, cage_f, marks_t, Vc, Fc, marks_c, max_evaluations=50)
+    scale = char.fit.alignment.scale
+    assert scale != pytest.approx(1.0, abs=1e-3)  # the bodies differ in height
     np.testing.assert_allclose(dt.transfer(char, cage_v), Vc, atol=1e-9)
+    # the whole template cage moved by d: the character moves by scale * d
+    d = np.array([0.1, -0.2, 0.05])
+    np.testing.assert_allclose(dt.transfer(char, cage_v + d), Vc + scale * d, atol=1e-9)
 
 
 def test_similar_copy_of_the_template_moves_like_the_template(data):
@@ -163,7 +171,7 @@ def test_too_few_matching_landmarks_is_one_clear_line(data, tmp_path):
 @pytest.mark.parametrize("content, problem", [
     ("1\nPicked 0 0.1 0.2 0.7 nose 0 0\n", "column"),
     ("3\nPicked 0 0.1 0.2 0.7 nose 0 0 0\n", "3 landmarks but 1"),
-    ('{"nose": [0, 1]}', ""),
+    ('{"nose": [0, 1]}', "must map to [x, y, z]"),
     ("", "empty"),
 ])
 def test_bad_landmark_files_exit_2_naming_the_file(data, tmp_path, content, problem):
@@ -229,3 +237,54 @@ def test_match_landmarks_pairs_by_label_and_reports_the_rest():
     with pytest.raises(InputError, match=r"a\.json and b\.csv share 4 landmark label\(s\); "
                                          r"at least 5"):
         io.match_landmarks(a, b, minimum=5, source_name="a.json", target_name="b.csv")
+
+
+def test_corresponds_needs_the_same_vertex_count_and_faces():
+    V, F = np.zeros((4, 3)), np.array([[0, 1, 2], [0, 2, 3]])
+    assert dt.corresponds((V, F), (V + 1, F))
+    assert not dt.corresponds((V, F), (V[:3], F[:1]))
+    assert not dt.corresponds((V, F), (V, F[:, ::-1]))
+
+
+@pytest.fixture(scope="module")
+def models(data, tmp_path_factory):
+    """Two one-step runs on the small data set: with a fixed source and cage, and without."""
+    from cagekit.cli import main as cagekit_main
+
+    out, _ = data
+    root = tmp_path_factory.mktemp("runs")
+    common = [str(out / "train"), "--align", "l2", "--no-augment", "--no-box-align",
+              "--max-steps", "1", "--batch-size", "1", "--points", "256", "--bottleneck",
+              "8", "--lr", "1e-30"]
+    fixed = ["--fixed-source", str(out / "template.obj"), "--source-cage",
+             str(out / "template_cage.obj")]
+    for name, extra in (("fixed", fixed), ("plain", [])):
+        result = CliRunner().invoke(cagekit_main, ["train", *common, *extra, "-o",
+                                                   str(root / name)])
+        assert result.exit_code == 0, result.output
+    return root
+
+
+def test_learned_transfer_through_the_command(data, models, tmp_path):
+    out, _ = data
+    pose = tmp_path / "rest.obj"  # the template itself: an untrained model leaves it
+    pose.write_bytes((out / "template.obj").read_bytes())
+    result = _run([*_inputs(out), pose, "-o", tmp_path / "res", "--model", models / "fixed",
+                   "--json"])
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.stdout)["mode"] == "learned"
+    Vc, _ = io.load_mesh(out / "characters" / "stocky.obj")
+    X, _ = io.load_mesh(tmp_path / "res" / "rest.obj")
+    # zero-initialised decoders (lr 1e-30): the deformed cage is the template cage, in the
+    # pose's frame, which is the template's: the character comes back at rest
+    np.testing.assert_allclose(X, Vc, atol=1e-5 * np.ptp(Vc))
+
+
+def test_model_without_a_fixed_source_exits_2_naming_it(data, models, tmp_path):
+    out, _ = data
+    result = _run([*_inputs(out), out / "poses", "-o", tmp_path / "res", "--model",
+                   models / "plain"])
+    assert result.exit_code == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and str(models / "plain") in lines[0] and "fixed source" in lines[0]
+    assert not (tmp_path / "res").exists()
