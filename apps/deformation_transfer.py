@@ -78,8 +78,9 @@ from cagekit.errors import InputError
 from cagekit.geometry import as_vertices, cotangent_laplacian, normalize
 
 __all__ = ["CharacterCage", "fit_character", "corresponds", "check_model",
-           "check_fitted_cage", "template_cage_classical", "template_cage_learned",
-           "transfer_cage", "transfer", "render_grid", "SMOOTHNESS"]
+           "check_fitted_cage", "template_cage_classical", "classical_fitter",
+           "template_cage_learned", "transfer_cage", "transfer", "render_grid",
+           "SMOOTHNESS"]
 
 #: weight of the cage-Laplacian term of the classical template fit (the cage's own units)
 SMOOTHNESS = 1e-2
@@ -233,7 +234,7 @@ def check_fitted_cage(character: CharacterCage) -> dict:
 
 
 def template_cage_classical(template, cage, pose, *, seed: int = 0,
-                            smoothness: float = SMOOTHNESS, weights=None,
+                            smoothness: float = SMOOTHNESS, fitter=None,
                             max_evaluations: int = TEMPLATE_EVALUATIONS) -> np.ndarray:
     """The template's deformed cage ``C_(s->t)`` by a per-pair cage fit (no training).
 
@@ -252,8 +253,9 @@ def template_cage_classical(template, cage, pose, *, seed: int = 0,
         matched by :func:`cagekit.deform` (Chamfer distance, ``max_evaluations``).
     seed : int, default 0
     smoothness : float, default :data:`SMOOTHNESS`
-    weights : (n_s, k) array_like of float, optional
-        The template's coordinates in ``C_s``, when already computed.
+    fitter : callable, optional
+        :func:`classical_fitter` of this template and cage, when already built (for
+        many poses).
     max_evaluations : int, default 200
 
     Returns
@@ -267,15 +269,47 @@ def template_cage_classical(template, cage, pose, *, seed: int = 0,
         result = deform(template, pose, cage=cage, method="cage",
                         max_evaluations=max_evaluations, seed=seed)
         return result.deformed_cage_v
-    W = bind(Vs, cage_v, cage_f).weights if weights is None else np.asarray(weights)
-    L = cotangent_laplacian(cage_v, check_cage(cage_v, cage_f)).toarray()
+    if fitter is None:
+        fitter = classical_fitter(Vs, cage_v, cage_f, smoothness=smoothness)
+    return fitter(Vp)
+
+
+def classical_fitter(template_v, cage_v, cage_f, *, smoothness: float = SMOOTHNESS):
+    """The least-squares template fit of :func:`template_cage_classical`, factored once.
+
+    ``min_C |W C - V_pose|^2 + smoothness |L (C - C_s)|^2`` has the same matrix for every
+    pose of one template; its pseudo-inverse is computed here, and each pose then costs
+    one matrix product.
+
+    Parameters
+    ----------
+    template_v : (n_s, 3) array_like of float
+        The template in rest pose.
+    cage_v, cage_f : (k, 3) float, (f, 3) int
+        ``C_s``.
+    smoothness : float, default :data:`SMOOTHNESS`
+
+    Returns
+    -------
+    callable
+        ``fitter(pose_v)``: (n_s, 3) pose vertices in the template's vertex order ->
+        (k, 3) float64 ``C_(s->t)``.
+    """
+    cage_v = as_vertices(cage_v, "cage_v")
+    cage_f = check_cage(cage_v, cage_f)
+    W = bind(as_vertices(template_v, "template_v"), cage_v, cage_f).weights
+    L = cotangent_laplacian(cage_v, cage_f).toarray()
     r = np.sqrt(float(smoothness))
-    A = np.vstack([W, r * L])
-    b = np.vstack([Vp, r * (L @ cage_v)])
-    C = np.linalg.lstsq(A, b, rcond=None)[0]
-    if not np.isfinite(C).all():
-        raise FloatingPointError("the cage fit produced NaN or inf positions")
-    return C
+    solve = np.linalg.pinv(np.vstack([W, r * L]))
+    anchor = r * (L @ cage_v)
+
+    def fitter(pose_v) -> np.ndarray:
+        C = solve @ np.vstack([np.asarray(pose_v, np.float64), anchor])
+        if not np.isfinite(C).all():
+            raise FloatingPointError("the cage fit produced NaN or inf positions")
+        return C
+
+    return fitter
 
 
 def template_cage_learned(model, template_v, cage_v, pose) -> np.ndarray:
@@ -304,20 +338,11 @@ def template_cage_learned(model, template_v, cage_v, pose) -> np.ndarray:
     InputError
         The model has no fixed source or was trained with another cage.
     """
-    from cagekit.metrics import surface_samples
-    from cagekit_learn.inference import predict_fixed_source
+    from cagekit_learn.inference import predict_cages
 
-    config = model.config
     check_model(model, template_v, cage_v)
-    Vp, Fp = np.asarray(pose[0], np.float64), np.asarray(pose[1])
-    Vp_n, cp, sp = normalize(Vp)
-    rows = getattr(config, "fixed_source_rows", None)
-    if rows is not None and len(Vp) == getattr(config, "fixed_source_vertex_count", None):
-        target = Vp_n[np.asarray(rows, dtype=np.int64)]
-    else:
-        target = surface_samples(Vp_n, Fp, len(config.fixed_source_points), seed=1)
-    _, deformed_n = predict_fixed_source(model, target)
-    return deformed_n * sp + cp
+    points = len(model.config.fixed_source_points)
+    return predict_cages(model, np.asarray(template_v, np.float64), pose, points=points)[1]
 
 
 def transfer_cage(template_cage_v, deformed_template_cage_v, character_cage_v,
@@ -437,16 +462,6 @@ def render_grid(path, rows, titles=None, labels=None, panel=(240, 300)) -> None:
         fig.savefig(tmp_path, format="png", dpi=100)
 
 
-def _load_model(path):
-    from cagekit_learn.train import load_model
-
-    target = Path(path)
-    if target.is_dir():
-        target = target / "checkpoint.pt"
-    model, _ = load_model(target)
-    return model
-
-
 @click.command(cls=Command, context_settings={"help_option_names": ["-h", "--help"]})
 @click.argument("template", type=click.Path(dir_okay=False))
 @click.argument("template_cage", type=click.Path(dir_okay=False))
@@ -508,7 +523,9 @@ def main(template, template_cage, template_landmarks, character, character_landm
     pose_meshes = [io.load_mesh(path) for path in pose_paths]  # every input read first
     model = None
     if model_path:
-        model = _load_model(model_path)
+        from cagekit_learn.train import load_model
+
+        model = load_model(model_path)[0]
         check_model(model, Vt, cage_v, model_path)
     loaded = time.perf_counter()
     char = fit_character(Vt, cage_v, cage_f, marks_t, Vc, Fc, marks_c, align=align,
@@ -524,14 +541,14 @@ def main(template, template_cage, template_landmarks, character, character_landm
     for problem in cage_check["problems"]:
         click.echo(f"warning: the fitted character cage {problem}", err=True)
     fitted = time.perf_counter()
-    weights = bind(Vt, cage_v, cage_f).weights if model is None else None
+    fitter = classical_fitter(Vt, cage_v, cage_f) if model is None else None
     results = []
     for (Vp, Fp) in tqdm(pose_meshes, desc="poses", unit="pose", disable=not _progress_enabled(),
                          leave=False):
         t0 = time.perf_counter()
         if model is None:
             deformed = template_cage_classical((Vt, Ft), (cage_v, cage_f), (Vp, Fp),
-                                               seed=seed, weights=weights)
+                                               seed=seed, fitter=fitter)
         else:
             deformed = template_cage_learned(model, Vt, cage_v, (Vp, Fp))
         results.append((transfer(char, deformed), time.perf_counter() - t0))

@@ -41,9 +41,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from apps import deformation_transfer as dt  # noqa: E402
 from apps import humanoid_data  # noqa: E402
 from cagekit import io  # noqa: E402
-from cagekit.coords import bind  # noqa: E402
 from cagekit.geometry import normalize  # noqa: E402
 from cagekit.metrics import dcotlap  # noqa: E402
+from cagekit_learn.train import load_model  # noqa: E402
 
 METHODS = ("rest", "nearest", "classical", "learned")
 
@@ -57,9 +57,13 @@ def train_command(data: Path, run_dir: Path, steps: int, seed: int) -> list[str]
             "--epochs", "1000", "--seed", str(seed), "-o", str(run_dir)]
 
 
-def nearest_copy(template_v, pose_v, character_v, alignment) -> np.ndarray:
-    """Each character vertex moves like its nearest template vertex (aligned frames)."""
-    _, nn = cKDTree(template_v).query(alignment.invert(character_v))
+def nearest_vertices(template_v, character_v, alignment) -> np.ndarray:
+    """(n,) index of each character vertex's nearest template vertex (aligned frames)."""
+    return cKDTree(template_v).query(alignment.invert(character_v))[1]
+
+
+def nearest_copy(template_v, pose_v, character_v, alignment, nn) -> np.ndarray:
+    """Each character vertex moves like its nearest template vertex ``nn``."""
     return character_v + alignment.apply_vectors(pose_v[nn] - template_v[nn])
 
 
@@ -100,7 +104,7 @@ def main(argv=None) -> dict:
         t0 = time.perf_counter()
         subprocess.run(command, check=True)
         train_seconds = time.perf_counter() - t0
-    model = dt._load_model(run_dir)
+    model = load_model(run_dir)[0]
 
     Vt, Ft = io.load_mesh(data / "template.obj")
     cage_v, cage_f = io.load_mesh(data / "template_cage.obj")
@@ -111,13 +115,13 @@ def main(argv=None) -> dict:
 
     deformed, timing = {"classical": [], "learned": []}, {"classical": [], "learned": []}
     pose_meshes = []
-    template_weights = bind(Vt, cage_v, cage_f).weights
+    fitter = dt.classical_fitter(Vt, cage_v, cage_f)
     for path in poses:
         Vp, Fp = io.load_mesh(path)
         pose_meshes.append((Vp, Fp))
         t0 = time.perf_counter()
         deformed["classical"].append(dt.template_cage_classical(
-            (Vt, Ft), (cage_v, cage_f), (Vp, Fp), seed=args.seed, weights=template_weights))
+            (Vt, Ft), (cage_v, cage_f), (Vp, Fp), seed=args.seed, fitter=fitter))
         t1 = time.perf_counter()
         deformed["learned"].append(dt.template_cage_learned(model, Vt, cage_v, (Vp, Fp)))
         t2 = time.perf_counter()
@@ -135,6 +139,7 @@ def main(argv=None) -> dict:
                       "evaluations": fit.evaluations, "landmarks": len(char.match.labels),
                       "max_landmark_error_pct": float(fit.landmark_errors.max()
                                                       / np.ptp(Vc[:, 1]) * 100)}
+        nn = nearest_vertices(Vt, Vc, fit.alignment)
         shown = {name: [] for name in ("truth", "classical", "learned")}
         for i, (path, (Vp, _)) in enumerate(zip(poses, pose_meshes)):
             truth, _ = io.load_mesh(data / "truth" / body / path.name)
@@ -142,7 +147,7 @@ def main(argv=None) -> dict:
             t0 = time.perf_counter()
             outs["rest"] = Vc
             t1 = time.perf_counter()
-            outs["nearest"] = nearest_copy(Vt, Vp, Vc, fit.alignment)
+            outs["nearest"] = nearest_copy(Vt, Vp, Vc, fit.alignment, nn)
             t2 = time.perf_counter()
             extra = {"rest": t1 - t0, "nearest": t2 - t1}
             for method in ("classical", "learned"):

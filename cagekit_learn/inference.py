@@ -30,7 +30,7 @@ from cagekit.geometry import normalize
 from cagekit.metrics import surface_samples
 from cagekit_learn.networks import NeuralCages
 
-__all__ = ["predict", "predict_fixed_source", "deform_with_model"]
+__all__ = ["predict", "predict_fixed_source", "predict_cages", "deform_with_model"]
 
 
 def predict(model: NeuralCages, source_points, target_points) -> tuple[np.ndarray, np.ndarray]:
@@ -92,6 +92,58 @@ def predict_fixed_source(model: NeuralCages, target_points) -> tuple[np.ndarray,
     return predict(model, model.fixed_source.cpu().numpy(), target)
 
 
+def _predicted(model, Vs, Fs, Vt, Ft, points, seed):
+    """Normalise both shapes, sample them as in training and run the model.
+
+    Returns ``(Vs_n, (cs, ss), (ct, st), cage_n, deformed_n)``: the normalised source,
+    both normalisations, and the two cages in the normalised source and target frames.
+    """
+    points = 1024 if points is None else int(points)
+    Vs_n, cs, ss = normalize(Vs)
+    Vt_n, ct, st = normalize(Vt)
+    fixed = getattr(model, "fixed_source", None)
+    config = getattr(model, "config", None)
+    rows = getattr(config, "fixed_source_rows", None)
+    if fixed is not None and rows is not None and len(Vt) == getattr(
+            config, "fixed_source_vertex_count", None):
+        T = Vt_n[np.asarray(rows, dtype=np.int64)]
+    else:
+        T = surface_samples(Vt_n, Ft, points, seed=seed + 1)
+    if fixed is not None:
+        cage_n, deformed_n = predict_fixed_source(model, T)
+    else:
+        S = surface_samples(Vs_n, Fs, points, seed=seed)
+        cage_n, deformed_n = predict(model, S, T)
+    return Vs_n, (cs, ss), (ct, st), cage_n, deformed_n
+
+
+def predict_cages(model: NeuralCages, source, target, *, points: int | None = None,
+                  seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """The predicted source cage and its deformation, in the shapes' own frames.
+
+    The first half of :func:`deform_with_model` (samples fed exactly as it feeds them,
+    fixed source included), for callers that move the cage themselves.
+
+    Parameters
+    ----------
+    model : NeuralCages
+    source, target : (V, F) pairs, trimesh objects or (n, 3) arrays
+    points : int, optional
+        Samples of each shape; default 1,024.
+    seed : int, default 0
+
+    Returns
+    -------
+    cage_v, deformed_cage_v : (k, 3) float64
+        In the source's and the target's frames and units; faces ``model.cage_f``.
+    """
+    Vs, Fs = _as_pair(source, "source")
+    Vt, Ft = _as_pair(target, "target")
+    _, (cs, ss), (ct, st), cage_n, deformed_n = _predicted(model, Vs, Fs, Vt, Ft, points,
+                                                           seed)
+    return cage_n * ss + cs, deformed_n * st + ct
+
+
 def deform_with_model(model: NeuralCages, source, target, *, points: int | None = None,
                       seed: int = 0, refine: bool = False, **refine_options) -> DeformResult:
     """Deform ``source`` to take ``target``'s shape with a trained model.
@@ -130,24 +182,10 @@ def deform_with_model(model: NeuralCages, source, target, *, points: int | None 
     samples otherwise.
     """
     start = time.perf_counter()
-    points = 1024 if points is None else int(points)
     Vs, Fs = _as_pair(source, "source")
     Vt, Ft = _as_pair(target, "target")
-    Vs_n, cs, ss = normalize(Vs)
-    Vt_n, ct, st = normalize(Vt)
-    fixed = getattr(model, "fixed_source", None)
-    config = getattr(model, "config", None)
-    rows = getattr(config, "fixed_source_rows", None)
-    if fixed is not None and rows is not None and len(Vt) == getattr(
-            config, "fixed_source_vertex_count", None):
-        T = Vt_n[np.asarray(rows, dtype=np.int64)]
-    else:
-        T = surface_samples(Vt_n, Ft, points, seed=seed + 1)
-    if fixed is not None:
-        cage_n, deformed_n = predict_fixed_source(model, T)
-    else:
-        S = surface_samples(Vs_n, Fs, points, seed=seed)
-        cage_n, deformed_n = predict(model, S, T)
+    Vs_n, (cs, ss), (ct, st), cage_n, deformed_n = _predicted(model, Vs, Fs, Vt, Ft,
+                                                              points, seed)
     cage_f = model.cage_f.cpu().numpy()
     cage_v, deformed_v = cage_n * ss + cs, deformed_n * st + ct
     if refine:
