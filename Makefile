@@ -5,7 +5,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-slow lint bench bench-fit-cage bench-deform bench-learn bench-transfer venv clean
+.PHONY: demo test test-emulated test-slow lint assets bench bench-assets bench-fit-cage bench-deform bench-learn bench-transfer venv clean
 
 $(STAMP): setup.cfg pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -22,11 +22,30 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(BIN)/python -m pytest -q -n 2 tests
 
+# the same tests as compiled for another CPU: numba for a generic x86-64 (no AVX2, no FMA)
+# and numpy without its AVX2/AVX-512 kernels; results differ in the last bits, tests must not
+EMULATED_CPU := NUMBA_CPU_NAME=generic
+ifeq ($(shell uname -m),x86_64)
+EMULATED_CPU += NPY_DISABLE_CPU_FEATURES="X86_V3 X86_V4 AVX512_ICL AVX512_SPR"
+endif
+test-emulated: $(STAMP)
+	$(EMULATED_CPU) $(BIN)/python -m pytest -q -n 2 -p no:cacheprovider tests
+
 test-slow: $(STAMP)
 	$(BIN)/python -m pytest -q -m slow tests
 
 lint: $(STAMP)
 	$(BIN)/ruff check cagekit cagekit_learn apps tests benchmarks data
+
+# Debian's sweethome3d-furniture (820 real models; installed as root when missing)
+FURNITURE := /usr/share/sweethome3d/furniture/KatorLegaz.sh3f
+assets:
+	test -f $(FURNITURE) || DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends sweethome3d-furniture >/dev/null || (apt-get update -q >/dev/null && DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends sweethome3d-furniture >/dev/null)
+
+# every model of sweethome3d-furniture loaded and caged (about 30 min on 2 cores)
+bench-assets: $(STAMP) assets
+	mkdir -p out
+	$(BIN)/python benchmarks/bench_assets.py --json out/bench_assets.json --sheet out/assets_sheet.png
 
 bench: $(STAMP)
 	$(BIN)/pip install -q -e '.[dev,bench]'

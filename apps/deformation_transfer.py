@@ -52,8 +52,6 @@ writes ``OUT_DIR/<pose name>.obj`` per pose, ``OUT_DIR/character_cage.obj`` and
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -170,7 +168,8 @@ def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
         raise InputError(f"align must be 'box' or 'similarity', got {align!r}")
     fit = fit_cage_by_consistency(cage_v, cage_f, match.source, match.target,
                                   alignment=alignment, max_evaluations=max_evaluations)
-    weights = bind(character_v, fit.cage_v, cage_f).weights
+    # the fitted cage may fold: check_fitted_cage reports it (and the command warns)
+    weights = bind(character_v, fit.cage_v, cage_f, check=False).weights
     return CharacterCage(vertices=character_v, faces=np.asarray(character_f, np.int64),
                          template_cage_v=cage_v, cage_v=fit.cage_v, cage_f=cage_f, fit=fit,
                          match=match, weights=weights)
@@ -214,11 +213,10 @@ def check_fitted_cage(character: CharacterCage) -> dict:
         below 0.5: there the coordinates extrapolate), and ``problems``: one line for
         each of a non-positive volume, self-intersections and vertices outside.
     """
-    from cagekit.cage import signed_volume, winding_numbers
-    from cagekit.fitting import _self_intersecting_faces
+    from cagekit.cage import self_intersecting_faces, signed_volume, winding_numbers
 
     volume = float(signed_volume(character.cage_v, character.cage_f))
-    crossing = int(_self_intersecting_faces(character.cage_v, character.cage_f).sum())
+    crossing = int(self_intersecting_faces(character.cage_v, character.cage_f).sum())
     outside = float(np.mean(winding_numbers(character.vertices, character.cage_v,
                                             character.cage_f) < 0.5))
     problems = []
@@ -438,28 +436,10 @@ def render_grid(path, rows, titles=None, labels=None, panel=(240, 300)) -> None:
     panel : (int, int)
         Width and height of one panel in pixels.
     """
-    from matplotlib.figure import Figure
-    from matplotlib.image import imread
+    from cagekit.render import render_grid as grid
 
-    from cagekit.render import render_meshes
-
-    images = []
-    with tempfile.TemporaryDirectory() as tmp:
-        for i, meshes in enumerate(rows):
-            png = os.path.join(tmp, f"row{i}.png")
-            render_meshes(meshes, png, titles=titles if i == 0 else None,
-                          caption=None if labels is None else labels[i], size=panel,
-                          same_scale=True, views=((10, -70),))
-            images.append(imread(png)[..., :3])
-    width = max(r.shape[1] for r in images)
-    image = np.concatenate([np.pad(r, ((0, 0), (0, width - r.shape[1]), (0, 0)),
-                                   constant_values=1.0) for r in images], axis=0)
-    fig = Figure(figsize=(image.shape[1] / 100, image.shape[0] / 100), dpi=100)
-    ax = fig.add_axes((0, 0, 1, 1))
-    ax.imshow(image)
-    ax.axis("off")
-    with io.atomic_output(path) as tmp_path:
-        fig.savefig(tmp_path, format="png", dpi=100)
+    grid(path, rows, titles=[titles] + [None] * (len(rows) - 1) if titles else None,
+         captions=labels, size=panel, same_scale=True, views=((10, -70),))
 
 
 @click.command(cls=Command, context_settings={"help_option_names": ["-h", "--help"]})
@@ -509,6 +489,9 @@ def main(template, template_cage, template_landmarks, character, character_landm
         outputs.append(Path(grid_path))
         if not Path(grid_path).resolve().parent.is_dir():
             raise InputError("the picture's folder does not exist", grid_path)
+        if Path(grid_path).suffix.lower() != ".png":
+            raise InputError("the picture is written as PNG: give a .png file name",
+                             grid_path)
     for output in outputs:
         for given in inputs:
             if _same_file(str(output), given):
@@ -552,16 +535,17 @@ def main(template, template_cage, template_landmarks, character, character_landm
         else:
             deformed = template_cage_learned(model, Vt, cage_v, (Vp, Fp))
         results.append((transfer(char, deformed), time.perf_counter() - t0))
-    out.mkdir(parents=True, exist_ok=True)
-    rows = []
-    for path, name, (X, seconds) in zip(pose_paths, names, results):
-        io.save_mesh(out / name, X, char.faces)
-        rows.append({"pose": str(path), "output": str(out / name), "seconds": seconds})
-    io.save_mesh(out / "character_cage.obj", char.cage_v, char.cage_f)
-    if grid_path is not None:
-        render_grid(grid_path, [pose_meshes[:8], [(X, char.faces) for X, _ in results[:8]]],
-                    titles=[Path(p).stem for p in pose_paths[:8]],
-                    labels=["template", "transferred character"])
+    with io.output_folder(out):
+        rows = []
+        for path, name, (X, seconds) in zip(pose_paths, names, results):
+            io.save_mesh(out / name, X, char.faces)
+            rows.append({"pose": str(path), "output": str(out / name), "seconds": seconds})
+        io.save_mesh(out / "character_cage.obj", char.cage_v, char.cage_f)
+        if grid_path is not None:
+            transferred = [(X, char.faces) for X, _ in results[:8]]
+            render_grid(grid_path, [pose_meshes[:8], transferred],
+                        titles=[Path(p).stem for p in pose_paths[:8]],
+                        labels=["template", "transferred character"])
     fit = char.fit
     report = {
         "template": template, "character": character,

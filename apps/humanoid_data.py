@@ -32,7 +32,7 @@ import click
 import numpy as np
 
 from cagekit import io
-from cagekit.cli import Command, _debug_option, _emit_json, _json_option
+from cagekit.cli import Command, FiniteFloatRange, _debug_option, _emit_json, _json_option
 from cagekit.datasets import humanoid
 from cagekit.errors import InputError
 
@@ -150,7 +150,7 @@ def write(out_dir, *, poses: int = 20, train_poses: int = 1000, seed: int = 0,
 @click.option("--cage-faces", default=196, show_default=True, type=click.IntRange(min=20),
               help="Face budget of the template's cage (196 faces: 100 vertices).")
 @click.option("--resolution", default=1.0, show_default=True,
-              type=click.FloatRange(min=0.25, max=4.0), help="Mesh resolution of the bodies.")
+              type=FiniteFloatRange(min=0.25, max=4.0), help="Mesh resolution of the bodies.")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0))
 @_json_option
 @_debug_option

@@ -5,6 +5,10 @@ The core package: mean value coordinates (:func:`bind`), cage validation, automa
 (cotangent Laplacian, normalisation, sampling, PCA normals), the paper's metrics and mesh
 I/O. It never imports torch.
 
+The names below are loaded on first use (PEP 562), so that ``import cagekit`` and the
+command line start in a fraction of a second; ``cagekit.bind`` and ``from cagekit import
+bind`` work as usual.
+
 Examples
 --------
 >>> import numpy as np, cagekit
@@ -14,28 +18,42 @@ Examples
 [[0.4, 0.0, -0.1]]
 """
 
-from cagekit import shapes
-from cagekit.cage import cage_encloses, check_cage, winding_numbers
-from cagekit.coords import CageBinding, bind, mean_value_coordinates
-from cagekit.deformation import DeformResult, deform
-from cagekit.errors import CageError, InputError, LandmarkFileError, MeshFileError
-from cagekit.fitting import CageFitError, cage_report, fit_cage, template_cage
-from cagekit.geometry import (
-    cotangent_laplacian,
-    denormalize,
-    normalize,
-    pca_normals,
-    point_to_plane,
-    sample_surface,
-)
-from cagekit.metrics import chamfer, chamfer_distance, dcotlap, evaluate
+import importlib
 
 __version__ = "0.1.0"
 
-__all__ = [
-    "bind", "CageBinding", "mean_value_coordinates", "cage_encloses", "check_cage",
-    "winding_numbers", "cotangent_laplacian", "normalize", "denormalize", "sample_surface",
-    "pca_normals", "point_to_plane", "chamfer", "chamfer_distance", "dcotlap", "evaluate",
-    "deform", "DeformResult", "fit_cage", "cage_report", "template_cage", "CageFitError",
-    "InputError", "MeshFileError", "LandmarkFileError", "CageError", "shapes", "__version__",
-]
+#: public name -> the module that defines it
+_EXPORTS = {
+    "bind": "cagekit.coords", "CageBinding": "cagekit.coords",
+    "mean_value_coordinates": "cagekit.coords",
+    "cage_encloses": "cagekit.cage", "check_cage": "cagekit.cage",
+    "winding_numbers": "cagekit.cage",
+    "cotangent_laplacian": "cagekit.geometry", "normalize": "cagekit.geometry",
+    "denormalize": "cagekit.geometry", "sample_surface": "cagekit.geometry",
+    "pca_normals": "cagekit.geometry", "point_to_plane": "cagekit.geometry",
+    "chamfer": "cagekit.metrics", "chamfer_distance": "cagekit.metrics",
+    "dcotlap": "cagekit.metrics", "evaluate": "cagekit.metrics",
+    "deform": "cagekit.deformation", "DeformResult": "cagekit.deformation",
+    "fit_cage": "cagekit.fitting", "cage_report": "cagekit.fitting",
+    "template_cage": "cagekit.fitting", "CageFitError": "cagekit.fitting",
+    "InputError": "cagekit.errors", "MeshFileError": "cagekit.errors",
+    "LandmarkFileError": "cagekit.errors", "CageError": "cagekit.errors",
+}
+_SUBMODULES = ("shapes",)
+
+__all__ = [*_EXPORTS, *_SUBMODULES, "__version__"]
+
+
+def __getattr__(name):
+    if name in _EXPORTS:
+        value = getattr(importlib.import_module(_EXPORTS[name]), name)
+    elif name in _SUBMODULES:
+        value = importlib.import_module(f"cagekit.{name}")
+    else:
+        raise AttributeError(f"module 'cagekit' has no attribute {name!r}")
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(__all__)

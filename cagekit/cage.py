@@ -11,8 +11,9 @@ Decisions
 * An open cage (a boundary edge), a non-manifold edge (shared by more than two faces), an
   inconsistently oriented pair of faces, a face repeating a vertex or of zero area (twice
   its area below 1e-24 D**2, D the bounding-box diagonal), an index out of range and
-  non-finite coordinates are errors. Near-degenerate (sliver) faces are fine. A
-  consistently *inward* cage is flipped, not refused.
+  non-finite coordinates are errors, and so (by default) is a cage whose faces cross one
+  another. Near-degenerate (sliver) faces are fine. A consistently *inward* cage is
+  flipped, not refused.
 * A cage with several closed components is accepted (each component is checked); its
   orientation is decided per component by the sign of the component's volume.
 * Unreferenced vertices are allowed: they keep their index and get zero weight.
@@ -26,8 +27,8 @@ import numpy as np
 
 from cagekit.errors import CageError
 
-__all__ = ["CageTopology", "cage_topology", "check_cage", "signed_volume", "cage_encloses",
-           "winding_numbers"]
+__all__ = ["CageTopology", "cage_topology", "check_cage", "self_intersecting_faces",
+           "signed_volume", "cage_encloses", "winding_numbers", "distance_in_diagonals"]
 
 
 @dataclass(frozen=True)
@@ -112,7 +113,8 @@ def _components(n_vertices: int, faces: np.ndarray) -> np.ndarray:
     return labels
 
 
-def check_cage(cage_v, cage_f, name: str | None = None) -> np.ndarray:
+def check_cage(cage_v, cage_f, name: str | None = None, *,
+               intersections: bool = True) -> np.ndarray:
     """Validate a cage and return its faces oriented outward.
 
     Parameters
@@ -123,6 +125,12 @@ def check_cage(cage_v, cage_f, name: str | None = None) -> np.ndarray:
         Triangle faces.
     name : str, optional
         File name (or other label) put in front of error messages.
+    intersections : bool, default True
+        Also refuse a cage that intersects itself (:func:`self_intersecting_faces`, an
+        exact test costing about a millisecond per 100 faces). Coordinates are defined for
+        such a cage, but they fold the space: a point inside two sheets moves with both.
+        False skips the test, for cages known to be free of it (a fitted cage, the
+        template) or moved on purpose (a network's prediction during training).
 
     Returns
     -------
@@ -135,7 +143,8 @@ def check_cage(cage_v, cage_f, name: str | None = None) -> np.ndarray:
     CageError
         Non-finite vertices, bad face array, an index out of range, a face repeating a
         vertex or of zero area, a boundary (open cage), a non-manifold edge, inconsistent
-        orientation or a component of zero volume.
+        orientation, a component of zero volume, or (``intersections``) faces that cross
+        one another.
 
     Examples
     --------
@@ -159,9 +168,16 @@ def check_cage(cage_v, cage_f, name: str | None = None) -> np.ndarray:
     if np.any((f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 2] == f[:, 0])):
         raise CageError("cage has a degenerate face that repeats a vertex", name)
 
-    twice_area = np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]),
+    # areas and volumes in a frame of unit extent: no underflow for tiny cages
+    lo = v.min(axis=0)
+    with np.errstate(over="ignore"):
+        largest = float(np.max(v.max(axis=0) - lo))
+    if not np.isfinite(largest):
+        raise CageError("cage extent overflows float64 (coordinates too large)", name)
+    vs = (v - lo) / largest if largest > 0 else v - lo
+    twice_area = np.linalg.norm(np.cross(vs[f[:, 1]] - vs[f[:, 0]], vs[f[:, 2]] - vs[f[:, 0]]),
                                 axis=1)
-    diagonal = np.linalg.norm(v.max(axis=0) - v.min(axis=0))
+    diagonal = np.linalg.norm(vs.max(axis=0) - vs.min(axis=0))
     if np.any(twice_area <= 1e-24 * diagonal**2):
         raise CageError(f"cage face {int(np.argmin(twice_area))} has zero area", name)
 
@@ -184,13 +200,52 @@ def check_cage(cage_v, cage_f, name: str | None = None) -> np.ndarray:
     out = f.copy()
     for label in np.unique(labels):
         sel = labels == label
-        vol = signed_volume(v, f[sel])
-        scale = np.ptp(v[np.unique(f[sel])], axis=0).max()
+        vol = signed_volume(vs, f[sel])
+        scale = np.ptp(vs[np.unique(f[sel])], axis=0).max()
         if abs(vol) <= 1e-12 * scale**3:
             raise CageError("cage (or one of its components) encloses zero volume", name)
         if vol < 0:
             out[sel] = f[sel][:, ::-1]
+    if intersections:
+        crossing = int(self_intersecting_faces(v, out).sum())
+        if crossing:
+            raise CageError(f"the cage intersects itself ({crossing} of its {len(out)} faces "
+                            "cross another face); a cage must be free of self-intersection "
+                            "(cagekit fit-cage builds one that is)", name)
     return out
+
+
+def self_intersecting_faces(cage_v, cage_f) -> np.ndarray:
+    """Which faces of a triangle mesh intersect another of its faces (exact test).
+
+    Faces that only share a vertex or an edge do not count. Uses pymeshlab's
+    ``compute_selection_by_self_intersections_per_face`` (exact predicates).
+
+    Parameters
+    ----------
+    cage_v : (k, 3) array_like of float
+    cage_f : (m, 3) array_like of int
+        Faces of positive area (:func:`check_cage` refuses zero-area faces first).
+
+    Returns
+    -------
+    (m,) bool
+
+    Examples
+    --------
+    >>> import cagekit.shapes as shapes
+    >>> v, f = shapes.box_cage()
+    >>> int(self_intersecting_faces(v, f).sum())
+    0
+    """
+    import pymeshlab
+
+    v = np.ascontiguousarray(cage_v, dtype=np.float64)
+    f = np.ascontiguousarray(cage_f, dtype=np.int64)
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(v, f))
+    ms.compute_selection_by_self_intersections_per_face()
+    return np.asarray(ms.current_mesh().face_selection_array(), dtype=bool)
 
 
 def winding_numbers(points, cage_v, cage_f) -> np.ndarray:
@@ -242,3 +297,32 @@ def cage_encloses(points, cage_v, cage_f, threshold: float = 0.5) -> bool:
     """
     wn = winding_numbers(points, cage_v, cage_f)
     return bool(np.all(wn >= threshold - 1e-9))
+
+
+def distance_in_diagonals(points, cage_v) -> np.ndarray:
+    """Distance of each point from the centre of the cage's bounding box, in diagonals.
+
+    Computed without overflow (``hypot``), so that points at 1e300 get a finite value.
+
+    Parameters
+    ----------
+    points : (n, 3) array_like of float
+    cage_v : (k, 3) array_like of float
+
+    Returns
+    -------
+    (n,) float64
+
+    Examples
+    --------
+    >>> import cagekit.shapes as shapes
+    >>> v, f = shapes.box_cage()  # the cube [-1, 1]^3, diagonal 2 sqrt 3
+    >>> distance_in_diagonals([[0.0, 0.0, 0.0], [0.0, 0.0, 2 * 3**0.5]], v).tolist()
+    [0.0, 1.0]
+    """
+    v = np.asarray(cage_v, dtype=np.float64)
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    centre, diag = 0.5 * (lo + hi), float(np.linalg.norm(hi - lo))
+    with np.errstate(over="ignore"):
+        q = (np.asarray(points, dtype=np.float64).reshape(-1, 3) - centre) / diag
+    return np.hypot(np.hypot(q[:, 0], q[:, 1]), q[:, 2])

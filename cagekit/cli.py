@@ -15,12 +15,21 @@ Rules shared by every command (DESIGN.md, "Command line"):
 - outputs are written atomically by the library (temporary file, then rename);
 - NumPy floating-point warnings (overflow...) are silenced (``numpy.errstate``) so that
   stderr carries only these lines; the library's own checks report such input;
+- every other warning is one line, ``cagekit CMD: warning: ...`` (cagekit's own
+  :class:`~cagekit.errors.CagekitWarning`, or another library's, named after the message);
+  ``--debug`` shows Python's usual form;
+- SIGINT (Ctrl-C) ends the command with one line, ``interrupted``, and status 130; outputs
+  being written are removed (they are atomic), folders the command made are removed when
+  empty;
+- a crash in native code (a segmentation fault in a compiled library, a bug) prints
+  Python's fault handler report (the Python call that crashed) instead of dying silently;
 - ``--json`` prints one JSON object on stdout and nothing else there;
 - long work shows a progress bar on stderr, only when stderr is a terminal.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -31,14 +40,18 @@ import traceback
 import click
 
 from cagekit import __version__
-from cagekit.coords.binding import METHODS as COORDINATE_METHODS
 from cagekit.errors import InputError
-from cagekit.fitting import METHODS as FIT_METHODS
 
 __all__ = ["main"]
 
 #: points bound per step when a progress bar is shown
 _BIND_CHUNK = 20_000
+
+#: choices of the library (:data:`cagekit.coords.binding.METHODS`,
+#: :data:`cagekit.fitting.METHODS`), listed here so that starting the command line imports
+#: neither numba nor libigl (tests check that they match)
+COORDINATE_METHODS = ("mvc",)
+FIT_METHODS = ("wrap", "template")
 
 
 # ----------------------------------------------------------------------- error handling
@@ -53,10 +66,15 @@ def _debug_requested(args) -> bool:
     return "--debug" in args or os.environ.get("CAGEKIT_DEBUG", "") not in ("", "0")
 
 
+class Interrupted(BaseException):
+    """SIGINT, raised instead of KeyboardInterrupt so that click prints nothing for it."""
+
+
 class OneLineErrors:
     """Mixin for a click command or group: errors are one line on stderr, with fixed exit
     statuses (0 success, 1 failure, 2 bad input or usage, 130 interrupted); ``--debug``
-    (or ``CAGEKIT_DEBUG=1``) adds the traceback. The applications in ``apps/`` use it too.
+    (or ``CAGEKIT_DEBUG=1``) adds the traceback. Warnings are one line each, SIGINT one
+    line. The applications in ``apps/`` use it too.
     """
 
     def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True,
@@ -69,48 +87,112 @@ class OneLineErrors:
         debug = _debug_requested(args)
         prog = prog_name or "cagekit"
         where = prog
-        try:
+        _report_native_crashes()
+        with _one_line_warnings(prog, debug), _sigint_raises(Interrupted):
             try:
-                with np.errstate(all="ignore"):  # no NumPy warnings on stderr
-                    rv = super().main(args, prog_name=prog, complete_var=complete_var,
-                                      standalone_mode=False, **extra)
-            except click.exceptions.NoArgsIsHelpError as exc:
-                click.echo(exc.ctx.get_help())
-                rv = 0
-            code = rv if isinstance(rv, int) else 0
-        except click.UsageError as exc:
-            if exc.ctx is not None:
-                where = exc.ctx.command_path
-            hint = f" (see '{where} --help')"
-            error, code, message = exc, exc.exit_code, f"{exc.format_message()}{hint}"
-        except click.Abort as exc:
-            error, code, message = exc, 130, "aborted"
-        except click.ClickException as exc:
-            error, code, message = exc, exc.exit_code, exc.format_message()
-        except InputError as exc:
-            error, code, message = exc, 2, str(exc)
-        except OSError as exc:
-            error, code, message = exc, 1, _os_error_message(exc)
-        except MemoryError as exc:
-            error, code, message = exc, 1, "out of memory"
-        except KeyboardInterrupt as exc:
-            error, code, message = exc, 130, "interrupted"
-        except Exception as exc:  # noqa: BLE001  (a bug: one line, pointing at --debug)
-            error, code = exc, 1
-            message = f"internal error: {type(exc).__name__}: {exc}"
-            if not debug:
-                message += " (run with --debug for the traceback)"
-        else:
-            if standalone_mode:
-                sys.exit(code)
-            return code
-        if debug:
-            traceback.print_exception(error, file=sys.stderr)
-        where = _CURRENT.get("command", where)
-        click.echo(f"{where}: error: {_one_line(message)}", err=True)
+                try:
+                    with np.errstate(all="ignore"):  # no NumPy warnings on stderr
+                        rv = super().main(args, prog_name=prog, complete_var=complete_var,
+                                          standalone_mode=False, **extra)
+                except click.exceptions.NoArgsIsHelpError as exc:
+                    click.echo(exc.ctx.get_help())
+                    rv = 0
+                code = rv if isinstance(rv, int) else 0
+            except click.UsageError as exc:
+                if exc.ctx is not None:
+                    where = exc.ctx.command_path
+                hint = f" (see '{where} --help')"
+                error, code, message = exc, exc.exit_code, f"{exc.format_message()}{hint}"
+            except (click.Abort, KeyboardInterrupt, Interrupted) as exc:
+                error, code, message = exc, 130, "interrupted"
+            except click.ClickException as exc:
+                error, code, message = exc, exc.exit_code, exc.format_message()
+            except InputError as exc:
+                error, code, message = exc, 2, str(exc)
+            except OSError as exc:
+                error, code, message = exc, 1, _os_error_message(exc)
+            except MemoryError as exc:
+                error, code, message = exc, 1, "out of memory"
+            except Exception as exc:  # noqa: BLE001  (a bug: one line, pointing at --debug)
+                error, code = exc, 1
+                message = f"internal error: {type(exc).__name__}: {exc}"
+                if not debug:
+                    message += " (run with --debug for the traceback)"
+            else:
+                if standalone_mode:
+                    sys.exit(code)
+                return code
+            if debug:
+                traceback.print_exception(error, file=sys.stderr)
+            where = _CURRENT.get("command", where)
+            # on a terminal, a carriage return overwrites the "^C" it echoed
+            start = "\r" if code == 130 and _progress_enabled() else ""
+            click.echo(f"{start}{where}: error: {_one_line(message)}", err=True)
         if standalone_mode:
             sys.exit(code)
         return code
+
+
+def _report_native_crashes() -> None:
+    """Enable Python's fault handler on the real stderr (once), so that a crash inside a
+    compiled library prints the Python call it happened in instead of nothing."""
+    import faulthandler
+
+    if faulthandler.is_enabled() or sys.__stderr__ is None:
+        return
+    try:
+        faulthandler.enable(file=sys.__stderr__, all_threads=False)
+    except (ValueError, OSError, AttributeError):  # no real file descriptor (embedded)
+        pass
+
+
+@contextlib.contextmanager
+def _one_line_warnings(prog: str, debug: bool):
+    """Show every warning as one line, ``<command>: warning: <message>``."""
+    import warnings
+
+    from cagekit.errors import CagekitWarning
+
+    with warnings.catch_warnings():
+        if not debug:
+            def show(message, category, filename, lineno, file=None, line=None):
+                text = _one_line(message)
+                if not issubclass(category, CagekitWarning):
+                    text = f"{text} ({_package_of(filename)} {category.__name__})"
+                where = _CURRENT.get("command", prog)
+                click.echo(f"{where}: warning: {text}", err=True)
+
+            warnings.showwarning = show
+        yield
+
+
+def _package_of(filename: str) -> str:
+    """The top-level package a source file belongs to (for warnings from libraries)."""
+    parts = os.path.normpath(filename).split(os.sep)
+    for marker in ("site-packages", "dist-packages"):
+        if marker in parts[:-1]:
+            return parts[parts.index(marker) + 1].removesuffix(".py")
+    return os.path.basename(filename).removesuffix(".py")
+
+
+@contextlib.contextmanager
+def _sigint_raises(exception):
+    """SIGINT raises ``exception`` in the main thread while the block runs."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum, frame):
+        raise exception()
+
+    previous = signal.signal(signal.SIGINT, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _os_error_message(exc: OSError) -> str:
@@ -131,6 +213,17 @@ class _Group(OneLineErrors, click.Group):
 
 class Command(OneLineErrors, click.Command):
     """A stand-alone click command with cagekit's error handling (``cls=Command``)."""
+
+
+class FiniteFloatRange(click.FloatRange):
+    """click's FloatRange that also refuses NaN and infinities (which pass its bounds)."""
+
+    def convert(self, value, param, ctx):
+        """The number, or a usage error for NaN, inf or a value out of range."""
+        number = super().convert(value, param, ctx)
+        if not math.isfinite(number):
+            self.fail(f"{value!r} is not a finite number.", param, ctx)
+        return number
 
 
 def _start(ctx: click.Context) -> None:
@@ -213,7 +306,7 @@ def _terminal_size() -> tuple[int, int]:
 
 
 def _bind(points, cage_v, cage_f, method: str):
-    """Bind points to a cage; on a terminal, in chunks behind a progress bar.
+    """Bind points to a cage checked already; on a terminal, in chunks behind a progress bar.
 
     Returns a function mapping new cage vertices ``(k, 3)`` to deformed points ``(n, 3)``.
     The coordinates of a point do not depend on the other points, so chunking changes
@@ -224,7 +317,7 @@ def _bind(points, cage_v, cage_f, method: str):
     from cagekit.coords import bind
 
     if not _progress_enabled() or len(points) <= _BIND_CHUNK:
-        return bind(points, cage_v, cage_f, method=method).deform
+        return bind(points, cage_v, cage_f, method=method, check=False).deform
     from tqdm import tqdm
 
     columns, lines = _terminal_size()
@@ -233,7 +326,7 @@ def _bind(points, cage_v, cage_f, method: str):
               leave=False, ncols=columns, nrows=lines) as bar:
         for start in range(0, len(points), _BIND_CHUNK):
             chunk = points[start:start + _BIND_CHUNK]
-            bindings.append(bind(chunk, cage_v, cage_f, method=method))
+            bindings.append(bind(chunk, cage_v, cage_f, method=method, check=False))
             bar.update(len(chunk))
     return lambda new_v: np.concatenate([b.deform(new_v) for b in bindings], axis=0)
 
@@ -309,7 +402,8 @@ def apply(ctx, mesh, cage, deformed_cage, out, coords, as_json):
     import numpy as np
 
     from cagekit import io
-    from cagekit.cage import cage_encloses, check_cage
+    from cagekit.cage import check_cage
+    from cagekit.coords.binding import warn_outside
     from cagekit.geometry import face_areas
 
     _start(ctx)
@@ -336,15 +430,12 @@ def apply(ctx, mesh, cage, deformed_cage, out, coords, as_json):
     seconds["load"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    encloses = cage_encloses(V, CV, faces)
-    if not encloses:
-        click.echo(f"{ctx.command_path}: warning: {cage} does not enclose all of {mesh}; "
-                   "points outside the cage are extrapolated", err=True)
-    seconds["check"] = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
     deform = _bind(V, CV, faces, coords)
     seconds["bind"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    outside = warn_outside(V, CV, faces, shape=mesh, cage=cage)
+    seconds["check"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
     out_v = deform(DV)
@@ -361,7 +452,8 @@ def apply(ctx, mesh, cage, deformed_cage, out, coords, as_json):
             "n_faces": len(F),
             "n_cage_vertices": len(CV),
             "coords": coords,
-            "encloses": bool(encloses),
+            "encloses": outside == 0,
+            "outside": outside,
             "seconds": seconds,
         })
     else:
@@ -377,8 +469,9 @@ _EVAL_ROLES = ("source", "target", "deformed")
 @click.argument("source", type=click.Path(dir_okay=False))
 @click.argument("target", type=click.Path(dir_okay=False))
 @click.argument("deformed", type=click.Path(dir_okay=False))
-@click.option("--samples", default=5000, show_default=True, type=click.IntRange(min=1),
-              help="Surface samples per shape for the Chamfer distance.")
+@click.option("--samples", default=5000, show_default=True,
+              type=click.IntRange(min=1, max=1_000_000),
+              help="Surface samples per shape for the Chamfer distance (at most 1,000,000).")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
               help="Sampling seed (an integer >= 0).")
 @_json_option
@@ -513,7 +606,8 @@ def render(ctx, meshes, out, cages, titles, caption, views, size, up, same_scale
 @click.argument("mesh", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", "out", required=True, type=click.Path(dir_okay=False),
               help="Cage mesh to write (OBJ, OFF, PLY, STL, GLB).")
-@click.option("--faces", default=200, show_default=True, type=click.IntRange(min=4),
+@click.option("--faces", default=200, show_default=True,
+              type=click.IntRange(min=4, max=100_000),
               help="Largest number of cage faces (method wrap; the template has 80).")
 @click.option("--method", type=click.Choice(list(FIT_METHODS)), default="wrap",
               show_default=True,
@@ -587,7 +681,7 @@ _SYNTH_FAMILIES = ("chairs", "tables", "vases")
 @main.command(short_help="Write procedural chairs, tables or vases to a folder.")
 @click.argument("family", type=click.Choice(_SYNTH_FAMILIES), metavar="FAMILY")
 @click.option("-n", "--count", "count", default=1, show_default=True,
-              type=click.IntRange(min=1), help="Number of shapes.")
+              type=click.IntRange(min=1, max=100_000), help="Number of shapes.")
 @click.option("-o", "--output", "out", required=True, type=click.Path(file_okay=False),
               help="Folder to write them to (created if missing).")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
@@ -595,7 +689,7 @@ _SYNTH_FAMILIES = ("chairs", "tables", "vases")
 @click.option("--format", "fmt", type=click.Choice(["obj", "ply", "off"]), default="obj",
               show_default=True, help="Mesh file format.")
 @click.option("--resolution", default=1.0, show_default=True,
-              type=click.FloatRange(min=0.1, max=10.0),
+              type=FiniteFloatRange(min=0.1, max=10.0),
               help="Scales the vertex count by about its square (about 4,500 at 1).")
 @_json_option
 @_debug_option
@@ -613,7 +707,7 @@ def synth(ctx, family, count, out, seed, fmt, resolution, as_json):
       cagekit synth chairs -n 10 -o chairs/ --seed 100
     """
     from cagekit.datasets.synthetic import FAMILIES
-    from cagekit.io import save_mesh
+    from cagekit.io import output_folder, save_mesh
 
     _start(ctx)
     if os.path.exists(out) and not os.path.isdir(out):
@@ -623,7 +717,6 @@ def synth(ctx, family, count, out, seed, fmt, resolution, as_json):
     for path in paths:
         if os.path.lexists(path):
             raise InputError("already exists; remove it or write to another folder", path)
-    os.makedirs(out, exist_ok=True)
     make = FAMILIES[family]
     vertices = []
     bar = None
@@ -634,12 +727,13 @@ def synth(ctx, family, count, out, seed, fmt, resolution, as_json):
         bar = tqdm(total=count, desc=family, unit="shape", file=sys.stderr, leave=False,
                    ncols=columns, nrows=lines)
     try:
-        for i, path in enumerate(paths):
-            V, F = make(seed=seed + i, resolution=resolution)
-            save_mesh(path, V, F)
-            vertices.append(len(V))
-            if bar is not None:
-                bar.update(1)
+        with output_folder(out):
+            for i, path in enumerate(paths):
+                V, F = make(seed=seed + i, resolution=resolution)
+                save_mesh(path, V, F)
+                vertices.append(len(V))
+                if bar is not None:
+                    bar.update(1)
     finally:
         if bar is not None:
             bar.close()
@@ -747,7 +841,8 @@ def _load_landmark_pair(src_path, tgt_path):
                    "trimesh's nricp_amberg (baselines).")
 @click.option("--cage", "cage_path", type=click.Path(dir_okay=False), default=None,
               help="SOURCE's cage (closed, around it); fitted with fit-cage when left out.")
-@click.option("--faces", default=200, show_default=True, type=click.IntRange(min=4),
+@click.option("--faces", default=200, show_default=True,
+              type=click.IntRange(min=4, max=100_000),
               help="Face budget of the fitted cage (without --cage).")
 @click.option("--save-cage", type=click.Path(dir_okay=False), default=None,
               help="Write the source cage here and the deformed cage beside it "
@@ -876,12 +971,18 @@ def deform(ctx, source, target, out, method, cage_path, faces, save_cage, symmet
                                        refine=refine, **(options if refine else {}))
             method = result.method
         else:
+            # a given cage was checked above, with its file name in the message
             result = run(src, tgt, cage, method=method, landmarks=pairs, faces=faces,
-                         seed=seed, **options)
+                         seed=seed, check=False, **options)
     except InputError as exc:
         if exc.path is None:
             low = exc.problem.lower()
-            blamed = (cage_path or source) if "cage" in low else f"{source}, {target}"
+            if low.startswith("the source:"):
+                blamed = source
+            elif low.startswith("the target:"):
+                blamed = target
+            else:
+                blamed = (cage_path or source) if "cage" in low else f"{source}, {target}"
             raise InputError(exc.problem, blamed) from None
         raise
     finally:
@@ -925,7 +1026,7 @@ def deform(ctx, source, target, out, method, cage_path, faces, save_cage, symmet
 @click.option("--epochs", default=100, show_default=True, type=click.IntRange(min=1))
 @click.option("--batch-size", default=8, show_default=True, type=click.IntRange(min=1),
               help="Pairs per step (per process under torchrun).")
-@click.option("--lr", default=1e-3, show_default=True, type=click.FloatRange(min=0,
+@click.option("--lr", default=1e-3, show_default=True, type=FiniteFloatRange(min=0,
               min_open=True), help="Adam's learning rate (N_c at a tenth of it).")
 @click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), default="auto",
               show_default=True)
@@ -933,7 +1034,8 @@ def deform(ctx, source, target, out, method, cage_path, faces, save_cage, symmet
               help="Continue the run in --output exactly where it stopped, with the "
                    "same number of processes (its own settings; --epochs, --max-steps, "
                    "--minutes and --device given again replace them).")
-@click.option("--points", default=1024, show_default=True, type=click.IntRange(min=16),
+@click.option("--points", default=1024, show_default=True,
+              type=click.IntRange(min=16, max=100_000),
               help="Samples per shape.")
 @click.option("--bottleneck", default=256, show_default=True, type=click.IntRange(min=1),
               help="Size of the PointNet code.")
@@ -962,7 +1064,7 @@ def deform(ctx, source, target, out, method, cage_path, faces, save_cage, symmet
               type=click.IntRange(min=1), help="Steps between checkpoints.")
 @click.option("--max-steps", default=None, type=click.IntRange(min=1),
               help="Stop after this many steps in all.")
-@click.option("--minutes", default=None, type=click.FloatRange(min=0, min_open=True),
+@click.option("--minutes", default=None, type=FiniteFloatRange(min=0, min_open=True),
               help="Stop (with a checkpoint) after this much training time.")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0))
 @_json_option
@@ -1017,7 +1119,10 @@ def train(ctx, data, run_dir, epochs, batch_size, lr, device, resume, points, bo
         symmetry=None if symmetry == "none" else symmetry, align=align,
         augment=not no_augment, max_steps=max_steps, max_minutes=minutes,
         model=model.to_dict(), fixed_source=fixed_source)
-    result = run(config, resume=resume, progress=_progress_enabled())
+    from cagekit.io import output_folder
+
+    with output_folder(run_dir):  # a run that fails before writing leaves no empty folder
+        result = run(config, resume=resume, progress=_progress_enabled())
     figures = {"run_dir": run_dir, "steps": result.step, "epochs": result.epoch,
                "skipped_steps": result.skipped, "losses": result.last_losses,
                "seconds": result.seconds, "pairs_per_second": result.pairs_per_second}

@@ -86,7 +86,9 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from cagekit import losses
+from cagekit.cage import check_cage
 from cagekit.coords import bind
+from cagekit.coords.binding import warn_outside
 from cagekit.errors import InputError
 from cagekit.geometry import (
     as_faces,
@@ -387,16 +389,25 @@ def _shape_rows(Vs_n, Fs, shape_points, rng):
     return used, own, inverse[len(rows):].reshape(index.shape), mask
 
 
+def _samples_of(role, V, F, n, seed):
+    """``surface_samples``, its errors naming the role (the command line blames the file)."""
+    try:
+        return surface_samples(V, F, n, seed=seed)
+    except InputError as exc:
+        raise InputError(f"the {role}: {exc.problem}") from None
+
+
 def _cage_method(Vs_n, Fs, Vt_n, Ft, cage_n, cage_f, weights, symmetry, lm, samples,
                  shape_points, max_evaluations, tolerance, seed, coords, reference,
                  progress, C_start=None):
     rng = np.random.default_rng(seed)
-    S = surface_samples(Vs_n, Fs, samples, seed=int(rng.integers(2**31)))
-    T = surface_samples(Vt_n, Ft, samples, seed=int(rng.integers(2**31)))
+    S = _samples_of("source", Vs_n, Fs, samples, int(rng.integers(2**31)))
+    T = _samples_of("target", Vt_n, Ft, samples, int(rng.integers(2**31)))
     used, own, index, mask = _shape_rows(Vs_n, Fs, shape_points, rng)
     src_lm, tgt_lm = lm
     parts = [Vs_n, S] + ([src_lm] if src_lm is not None else [])
-    binding = bind(np.concatenate(parts), cage_n, cage_f, method=coords)
+    # the cage is a fitted one, or a given one checked by deform
+    binding = bind(np.concatenate(parts), cage_n, cage_f, method=coords, check=False)
     W = binding.weights
     n, s = len(Vs_n), len(S)
     W_vertices, W_samples = W[:n], W[n:n + s]
@@ -436,7 +447,7 @@ def deform(source, target, cage=None, *, method: str = "cage", symmetry: str | N
            landmarks=None, weights: dict | None = None, faces: int = 200,
            samples: int = 2000, shape_points: int = 500, max_evaluations: int = 60,
            tolerance: float = 1e-7, reference: str = "aligned", coords: str = "mvc",
-           seed: int = 0, progress=None, initial_cage=None) -> DeformResult:
+           seed: int = 0, progress=None, initial_cage=None, check: bool = True) -> DeformResult:
     """Deform a source so it takes the shape of a target, keeping its detail.
 
     Parameters
@@ -448,7 +459,10 @@ def deform(source, target, cage=None, *, method: str = "cage", symmetry: str | N
         The shape to match: a mesh, or a point cloud (noisy or coarse; partial ones
         squash the source, see the module docstring).
     cage : (cage_v, cage_f) pair, optional
-        The source's cage in the source's frame (closed, outward). When None,
+        The source's cage in the source's frame: closed, 2-manifold, free of
+        self-intersection (refused otherwise, see ``check``); a cage that leaves part of the
+        source outside is used with an :class:`~cagekit.errors.OutsideCageWarning` (those
+        points are extrapolated). When None,
         :func:`cagekit.fit_cage` builds one with ``faces`` faces, checked against 5,000
         surface samples instead of fit-cage's 20,000 (a third faster; the coordinates
         are defined outside the cage too, so a sample a hair outside does no harm).
@@ -493,6 +507,9 @@ def deform(source, target, cage=None, *, method: str = "cage", symmetry: str | N
         target's frame and units (for example a learned prediction, which ``cagekit
         deform --model --refine`` refines). Default: the box-aligned cage. Needs
         ``cage``; the references of the shape and cage terms are unchanged.
+    check : bool, default True
+        Refuse a given ``cage`` that intersects itself (as :func:`cagekit.bind`); False
+        skips that test (a network's predicted cage, which may fold).
 
     Returns
     -------
@@ -552,6 +569,8 @@ def deform(source, target, cage=None, *, method: str = "cage", symmetry: str | N
             except (TypeError, ValueError):
                 raise InputError("cage must be a (vertices, faces) pair") from None
             cage_n = (as_vertices(cage_v, "cage vertices") - cs) / ss
+            cage_f = check_cage(cage_n, cage_f, intersections=check)
+            warn_outside(Vs_n, cage_n, cage_f, shape="the source", cage="the given cage")
         C_start = None
         if initial_cage is not None:
             if cage is None:

@@ -2,14 +2,18 @@
 
 Every problem caused by the user's input (a file, an array, a cage) raises a subclass of
 :class:`InputError`. The message is one line that names the file (when there is one) and the
-problem, so the command line can print it as is and exit with status 2.
+problem, so the command line can print it as is and exit with status 2. What is accepted but
+worth knowing (faces dropped from a file, points outside their cage) is a
+:class:`CagekitWarning`, issued with :func:`warnings.warn`; the command line prints each as
+one line.
 """
 
 from __future__ import annotations
 
 import os
 
-__all__ = ["InputError", "MeshFileError", "LandmarkFileError", "CageError"]
+__all__ = ["InputError", "MeshFileError", "LandmarkFileError", "CageError", "CagekitWarning",
+           "MeshFileWarning", "OutsideCageWarning"]
 
 
 class InputError(ValueError):
@@ -40,3 +44,15 @@ class LandmarkFileError(InputError):
 
 class CageError(InputError):
     """A cage is not a closed, 2-manifold, consistently oriented triangle mesh."""
+
+
+class CagekitWarning(UserWarning):
+    """Something accepted that the user should know about (one line, like InputError)."""
+
+
+class MeshFileWarning(CagekitWarning):
+    """A file was read, but parts of it were dropped (faces with fewer than 3 vertices)."""
+
+
+class OutsideCageWarning(CagekitWarning):
+    """Some bound points lie outside their cage: their coordinates extrapolate."""

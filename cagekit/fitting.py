@@ -48,12 +48,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from cagekit.cage import self_intersecting_faces
 from cagekit.errors import InputError
 from cagekit.geometry import unpack_shape
 
-__all__ = ["fit_cage", "cage_report", "template_cage", "CageFitError", "METHODS"]
+__all__ = ["fit_cage", "cage_report", "template_cage", "wrap_input", "CageFitError", "METHODS"]
 
 METHODS = ("wrap", "template")
+
+#: faces of :func:`template_cage` (the paper's icosphere)
+TEMPLATE_FACES = 80
 
 
 class CageFitError(InputError):
@@ -98,14 +102,21 @@ def _as_shape(shape_v, shape_f):
     f = f.reshape(-1, 3).astype(np.int64)
     if len(f) and (f.min() < 0 or f.max() >= len(v)):
         raise InputError("shape face index out of range")
-    if np.linalg.norm(np.ptp(v, axis=0)) == 0:
-        raise InputError("all points of the shape coincide: nothing to cage")
+    _frame(v)  # refuses shapes whose extent is zero, overflows or cannot be resolved
     return v, f
 
 
 def _frame(v):
-    lo, hi = v.min(axis=0), v.max(axis=0)
-    return 0.5 * (lo + hi), float(np.linalg.norm(hi - lo))
+    """Bounding-box centre and diagonal of a shape (the fitting frame's unit)."""
+    from cagekit.geometry import bounding_box, bounding_box_diagonal
+
+    try:
+        centre, extent = bounding_box(v)
+    except InputError as exc:
+        if "coincide" in exc.problem:
+            raise InputError("all points of the shape coincide: nothing to cage") from None
+        raise
+    return centre, bounding_box_diagonal(extent)
 
 
 def _samples(v, f, n, seed):
@@ -122,23 +133,118 @@ def _samples(v, f, n, seed):
 # ----------------------------------------------------------------------------- wrap
 
 
+#: size of the stand-in triangles given to the wrap for points and segments (unit diagonal)
+_STAND_IN = 1e-4
+
+
+def wrap_input(v, f):
+    """The triangle soup the alpha wrap is given for a shape: proper triangles only.
+
+    pymeshlab's alpha wrap (CGAL 5) crashes the process (a segmentation fault) on input it
+    cannot take: no faces at all, only zero-area faces, or a zero-area face before the
+    others. So the wrap is never given a face of zero area. The rule:
+
+    - a face is *proper* when its three indices differ and twice its area exceeds
+      ``1e-12`` times the square of its longest edge; proper faces are kept as they are;
+    - any other face (repeated index, collinear or coincident corners) whose longest edge is
+      longer than ``1e-4`` (this frame's unit is the bounding-box diagonal) is a segment: it
+      becomes a thin triangle along that edge, of height ``1e-4``;
+    - every vertex used by no proper face (points of a cloud, unreferenced vertices, the
+      corners of a degenerate face) becomes a tiny triangle of legs ``1e-4`` at it.
+
+    The wrap encloses these stand-ins with its offset (at least ``4e-3``), so every point and
+    every segment of the input stays inside. The exact cut test of a cage uses the proper
+    faces and the segments' stand-ins (:func:`_cut_soup`), points being checked by winding
+    numbers.
+
+    Parameters
+    ----------
+    v : (n, 3) float64
+        Vertices, in the frame whose bounding-box diagonal is 1.
+    f : (m, 3) int64
+        Faces (may be empty).
+
+    Returns
+    -------
+    wv : (p, 3) float64
+    wf : (q, 3) int64
+        Vertices and faces of proper triangles only, q >= 1.
+
+    Examples
+    --------
+    >>> v = np.array([[0.0, 0, 0], [0.5, 0, 0], [1.0, 0, 0]])
+    >>> wv, wf = wrap_input(v, np.array([[0, 1, 2]]))  # one collinear face
+    >>> len(wf), bool(np.all(_twice_areas(wv, wf) > 0))  # its segment and 3 corner points
+    (4, True)
+    """
+    sv, sf, used = _cut_soup(v, f, return_used=True)
+    loose = v[~used]
+    if not len(loose):
+        return sv, sf
+    e = _STAND_IN
+    tiny_v = np.concatenate([loose + [e, 0, 0], loose + [0, e, 0], loose + [0, 0, e]])
+    return np.vstack([sv, tiny_v]), np.vstack([sf, _fresh_triangles(len(sv), len(loose))])
+
+
+def _cut_soup(v, f, return_used=False):
+    """The proper faces of a shape and a thin triangle along each degenerate face.
+
+    See :func:`wrap_input` for the rule. Returns ``(sv, sf)``, and with ``return_used``
+    also which vertices a proper face uses, ``(n,)`` bool.
+    """
+    f = np.asarray(f, dtype=np.int64).reshape(-1, 3)
+    corners = v[f]
+    edges = np.stack([corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 1],
+                      corners[:, 0] - corners[:, 2]], axis=1)
+    lengths = np.linalg.norm(edges, axis=2).reshape(-1, 3)
+    longest = lengths.max(axis=1, initial=0.0)
+    distinct = (f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 2] != f[:, 0])
+    proper = distinct & (_twice_areas(v, f) > 1e-12 * longest**2)
+    segments = ~proper & (longest > _STAND_IN)
+    sv, sf = v, f[proper]
+    if segments.any():
+        k = lengths[segments].argmax(axis=1)
+        c = corners[segments]
+        rows = np.arange(len(c))
+        a, b = c[rows, k], c[rows, (k + 1) % 3]
+        sv = np.vstack([v, a, b, a + _STAND_IN * _perpendicular(b - a)])
+        sf = np.vstack([sf, _fresh_triangles(len(v), len(a))])
+    if not return_used:
+        return sv, sf
+    used = np.zeros(len(v), dtype=bool)
+    used[f[proper].ravel()] = True
+    return sv, sf, used
+
+
+def _twice_areas(v, f):
+    if not len(f):
+        return np.zeros(0)
+    return np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1)
+
+
+def _perpendicular(d):
+    """A unit vector perpendicular to each row of ``d`` (rows of positive length)."""
+    axis = np.eye(3)[np.argmin(np.abs(d), axis=1)]
+    n = np.cross(d, axis)
+    return n / np.linalg.norm(n, axis=1, keepdims=True)
+
+
+def _fresh_triangles(start, count):
+    """Faces ``(s + i, s + count + i, s + 2 count + i)`` over three stacked blocks."""
+    idx = start + np.arange(count)
+    return np.stack([idx, idx + count, idx + 2 * count], axis=1)
+
+
 def _alpha_wrap(v, f, alpha, offset):
-    """Alpha wrap of a mesh or cloud (unit-diagonal frame); returns (V, F) or None."""
+    """Alpha wrap of a mesh or cloud (unit-diagonal frame); returns (V, F) or None.
+
+    The wrap is given :func:`wrap_input`'s proper triangles only (see there for why).
+    """
     import pymeshlab
 
-    loose = np.setdiff1d(np.arange(len(v)), f.ravel())
-    if len(loose):
-        # points without faces (a cloud, or unreferenced vertices, which must be enclosed
-        # too): pymeshlab's alpha wrap crashes on faceless meshes, so each becomes a tiny
-        # triangle
-        e = 1e-4
-        p, n = v[loose], len(loose)
-        tiny = np.concatenate([p + [e, 0, 0], p + [0, e, 0], p + [0, 0, e]])
-        idx = len(v) + np.arange(n)
-        f = np.vstack([f, np.stack([idx, idx + n, idx + 2 * n], axis=1)])
-        v = np.vstack([v, tiny])
+    wv, wf = wrap_input(v, f)
     ms = pymeshlab.MeshSet()
-    ms.add_mesh(pymeshlab.Mesh(v, f))
+    ms.add_mesh(pymeshlab.Mesh(wv, wf))
     ms.generate_alpha_wrap(alpha=pymeshlab.PercentageValue(alpha * 100),
                            offset=pymeshlab.PercentageValue(offset * 100))
     m = ms.current_mesh()
@@ -345,15 +451,6 @@ def _fit_template(v, samples, margin):
 # ----------------------------------------------------------------------------- checks
 
 
-def _self_intersecting_faces(v, f):
-    import pymeshlab
-
-    ms = pymeshlab.MeshSet()
-    ms.add_mesh(pymeshlab.Mesh(v, f))
-    ms.compute_selection_by_self_intersections_per_face()
-    return np.asarray(ms.current_mesh().face_selection_array(), dtype=bool)
-
-
 def _n_components(f):
     from cagekit.cage import _components
 
@@ -363,11 +460,16 @@ def _n_components(f):
 def _cut_faces(cv, cf, v, f, alone=None):
     """Cage faces that intersect an input face (exact test, pymeshlab), (c,) bool.
 
+    The input's faces are taken as :func:`_cut_soup` gives them: proper faces, and a thin
+    triangle along each degenerate one (the test misreports zero-area faces).
     ``alone``: the cage's own self-intersecting faces, when already known.
     """
+    sv, sf = _cut_soup(v, f)
+    if not len(sf):
+        return np.zeros(len(cf), dtype=bool)
     if alone is None:
-        alone = _self_intersecting_faces(cv, cf)
-    both = _self_intersecting_faces(np.vstack([cv, v]), np.vstack([cf, f + len(cv)]))
+        alone = self_intersecting_faces(cv, cf)
+    both = self_intersecting_faces(np.vstack([cv, sv]), np.vstack([cf, sf + len(cv)]))
     return both[: len(cf)] & ~alone
 
 
@@ -384,14 +486,14 @@ def _checks(cv, cf, v, f, samples, faces, components, cut_checked=False):
 
     out = {}
     try:
-        oriented = np.array_equal(check_cage(cv, cf), cf)
+        oriented = np.array_equal(check_cage(cv, cf, intersections=False), cf)
         out["closed_manifold"] = True
     except CageError:
         oriented = False
         out["closed_manifold"] = False
     out["outward"] = bool(oriented and signed_volume(cv, cf) > 0)
     out["components"] = _n_components(cf) <= components
-    alone = _self_intersecting_faces(cv, cf)
+    alone = self_intersecting_faces(cv, cf)
     out["no_self_intersection"] = not alone.any()
     # the samples begin with the vertices (see _samples): one winding-number pass
     wn = igl.winding_number(cv, cf, np.ascontiguousarray(samples))
@@ -515,7 +617,7 @@ def fit_cage(shape_v, shape_f=None, faces: int = 200, method: str = "wrap", *,
         Its faces; None or empty for a point cloud. Open, multi-component, non-manifold,
         self-intersecting input and duplicate or degenerate faces are all accepted.
     faces : int, default 200
-        Largest number of cage faces (``wrap``); the template always has 80.
+        Largest number of cage faces. The template always has 80: fewer is refused.
     method : {"wrap", "template"}, default "wrap"
     components : int, default 1
         Largest number of cage components (``wrap``).
@@ -532,7 +634,7 @@ def fit_cage(shape_v, shape_f=None, faces: int = 200, method: str = "wrap", *,
         Rounds of the outward repair after decimation (``wrap``).
     return_report : bool, default False
         Also return :func:`cage_report`'s dict for the cage, from the checks the fit has
-        just passed (``face_count`` is judged against ``faces``, or 80 for the template).
+        just passed (``face_count`` is judged against ``faces``).
 
     Returns
     -------
@@ -546,7 +648,8 @@ def fit_cage(shape_v, shape_f=None, faces: int = 200, method: str = "wrap", *,
     Raises
     ------
     InputError
-        Empty shape, NaN, a single point, an unknown method, ``faces < 4``.
+        Empty shape, NaN, a single point, an unknown method, ``faces < 4``, or
+        ``faces < 80`` with the template.
     CageFitError
         No cage meeting every guarantee was found.
 
@@ -562,6 +665,10 @@ def fit_cage(shape_v, shape_f=None, faces: int = 200, method: str = "wrap", *,
         raise InputError(f"unknown cage method {method!r}; available: {', '.join(METHODS)}")
     if int(faces) < 4:
         raise InputError(f"a cage needs at least 4 faces, {faces} requested")
+    if method == "template" and int(faces) < TEMPLATE_FACES:
+        raise InputError(f"the template cage has {TEMPLATE_FACES} faces, more than the "
+                         f"{faces} asked for; ask for {TEMPLATE_FACES} or more, or use "
+                         "method wrap")
     v, f = _as_shape(shape_v, shape_f)
     centre, diag = _frame(v)
     vn = (v - centre) / diag
@@ -570,7 +677,7 @@ def fit_cage(shape_v, shape_f=None, faces: int = 200, method: str = "wrap", *,
         # a wider margin when input edges cross the cage between samples
         for grow in (1, 4, 16):
             cvn, cf = _fit_template(vn, pts, margin * grow)
-            report = _checks(cvn, cf, vn, f, pts, 80, 1)
+            report = _checks(cvn, cf, vn, f, pts, int(faces), 1)
             if all(report.values()):
                 break
         else:

@@ -51,6 +51,8 @@ __all__ = [
     "Neighborhoods",
     "as_faces",
     "as_vertices",
+    "bounding_box",
+    "bounding_box_diagonal",
     "cotangent_laplacian",
     "denormalize",
     "face_areas",
@@ -339,7 +341,8 @@ def normalize(V: ArrayLike) -> tuple[np.ndarray, np.ndarray, float]:
     Raises
     ------
     InputError
-        All points coincide (zero extent), or bad input.
+        All points coincide (zero extent), the extent is not resolvable (see
+        :func:`bounding_box`), or bad input.
 
     Examples
     --------
@@ -347,18 +350,83 @@ def normalize(V: ArrayLike) -> tuple[np.ndarray, np.ndarray, float]:
     >>> Vn.tolist(), c.tolist(), s
     ([[-1.0, -0.5, 0.0], [1.0, 0.5, 0.0]], [2.0, 1.0, 0.0], 2.0)
     """
+    center, extent = bounding_box(V)
+    scale = float(0.5 * np.max(extent))
+    return (as_vertices(V) - center) / scale, center, scale
+
+
+#: smallest extent a shape may have: below it, differences of coordinates are subnormal
+#: numbers and lose digits (``2**52`` times the smallest normal float64, about 1e-292)
+MIN_EXTENT = float(np.finfo(np.float64).tiny * 2.0**52)
+
+
+def bounding_box(V: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    """Centre and extent of a shape's bounding box, checked to be resolvable in float64.
+
+    Parameters
+    ----------
+    V : array_like, shape (n, 3), float
+        Vertex positions.
+
+    Returns
+    -------
+    center : numpy.ndarray, shape (3,), float64
+    extent : numpy.ndarray, shape (3,), float64
+        ``max - min`` per axis; its largest entry is finite and at least
+        :data:`MIN_EXTENT`.
+
+    Raises
+    ------
+    InputError
+        All points coincide, the extent overflows, or it is so small (below
+        :data:`MIN_EXTENT`) that differences of coordinates lose digits.
+
+    Examples
+    --------
+    >>> c, e = bounding_box([[0, 0, 0], [4, 2, 0]])
+    >>> c.tolist(), e.tolist()
+    ([2.0, 1.0, 0.0], [4.0, 2.0, 0.0])
+    """
     V = as_vertices(V)
     lo, hi = V.min(axis=0), V.max(axis=0)
-    center = 0.5 * (lo + hi)
-    scale = float(0.5 * np.max(hi - lo))
-    if not scale > 0.0:
-        raise InputError(
-            "cannot normalise a shape whose points all coincide (zero extent)"
-        )
-    if not np.isfinite(scale):
-        raise InputError("cannot normalise a shape whose extent overflows (coordinates "
-                         "too large)")
-    return (V - center) / scale, center, scale
+    with np.errstate(over="ignore", invalid="ignore"):
+        extent = hi - lo
+    largest = float(np.max(extent))
+    if largest == 0.0:
+        raise InputError("all points of the shape coincide (zero extent)")
+    if not np.isfinite(largest):
+        raise InputError("the shape's extent overflows float64 (coordinates too large)")
+    if largest < MIN_EXTENT:
+        raise InputError(f"the shape's extent ({largest:.3g}) is too small to resolve in "
+                         "float64 (coordinates below about 1e-292 apart)")
+    # 0.5 lo + 0.5 hi: bit for bit 0.5 (lo + hi), without its overflow near 1e308
+    return 0.5 * lo + 0.5 * hi, extent
+
+
+def bounding_box_diagonal(extent: ArrayLike) -> float:
+    """Length of a bounding box's diagonal from its extent, without overflow or underflow.
+
+    Parameters
+    ----------
+    extent : array_like, shape (3,), float
+        As :func:`bounding_box` returns it.
+
+    Returns
+    -------
+    float
+
+    Examples
+    --------
+    >>> bounding_box_diagonal([1e300, 1e300, 0.0]) / 1e300
+    1.4142135623730951
+    """
+    extent = np.asarray(extent, dtype=np.float64)
+    largest = float(np.max(extent))
+    with np.errstate(over="ignore", under="ignore"):
+        plain = float(np.linalg.norm(extent))
+    if np.isfinite(plain) and plain >= largest:  # no overflow or underflow: the plain norm
+        return plain
+    return largest * float(np.linalg.norm(extent / largest))
 
 
 def denormalize(Vn: ArrayLike, center: ArrayLike, scale: float) -> np.ndarray:

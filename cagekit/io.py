@@ -21,7 +21,10 @@ Decisions
   read and written here; STL and GLB/GLTF go through ``trimesh.load(..., process=False,
   maintain_order=True)``.
 - **Polygons are fan-triangulated** in file order (face ``a b c d`` gives ``a b c``,
-  ``a c d``), which is exact for convex polygons. Faces with fewer than 3 vertices are errors.
+  ``a c d``), which is exact for convex polygons. Faces with fewer than 3 vertices (lines or
+  points written as faces, as real files have) are dropped with one
+  :class:`~cagekit.errors.MeshFileWarning` per file that counts them; vertices are kept.
+  Degenerate triangles (a repeated index, zero area) are kept as they are.
 - **OBJ** reads ``v`` and ``f`` statements only (texture coordinates, normals, groups,
   materials, lines and points are ignored); extra ``v`` columns (w or colours) are ignored;
   indices are 1-based, negative indices count back from the latest vertex, index 0 is an
@@ -57,16 +60,18 @@ import csv
 import json
 import logging
 import os
+import re
 import secrets
 import stat
 import struct
+import warnings
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 
 import numpy as np
 import trimesh
 
-from cagekit.errors import InputError, LandmarkFileError, MeshFileError
+from cagekit.errors import InputError, LandmarkFileError, MeshFileError, MeshFileWarning
 
 __all__ = [
     "SUPPORTED_LANDMARK_EXTENSIONS",
@@ -78,6 +83,7 @@ __all__ = [
     "load_points",
     "load_shape",
     "LandmarkMatch",
+    "output_folder",
     "match_landmarks",
     "save_landmarks",
     "save_mesh",
@@ -277,9 +283,17 @@ def _triangulate(flat, sizes, n_vertices, path, lines=None, base=0) -> np.ndarra
     flat = np.asarray(flat, dtype=np.int64).reshape(-1)
     sizes = np.asarray(sizes, dtype=np.int64)
     where = (lambda i: f"line {lines[i]}") if lines is not None else (lambda i: f"face {i}")
-    if len(sizes) and sizes.min() < 3:
-        i = int(np.argmax(sizes < 3))
-        raise MeshFileError(f"{where(i)}: a face needs at least 3 vertices, got {sizes[i]}", path)
+    short = sizes < 3
+    if short.any():  # lines or points written as faces: dropped, with one warning
+        first = int(np.argmax(short))
+        warnings.warn(MeshFileWarning(
+            f"{os.fspath(path)}: dropped {int(short.sum()):,} face(s) with fewer than 3 "
+            f"vertices (the first at {where(first)}); kept {int((~short).sum()):,}"),
+            stacklevel=5)
+        flat = flat[np.repeat(~short, sizes)]
+        if lines is not None:
+            lines = [line for line, bad in zip(lines, short) if not bad]
+        sizes = sizes[~short]
     if len(flat) and (flat.min() < 0 or flat.max() >= n_vertices):
         polygon = np.repeat(np.arange(len(sizes)), sizes)
         j = int(np.argmax((flat < 0) | (flat >= n_vertices)))
@@ -648,14 +662,68 @@ _READERS = {
 
 
 @contextlib.contextmanager
+def output_folder(path: str | os.PathLike) -> Iterator[str]:
+    """Make a folder for a command's outputs; if the block fails, remove what it made.
+
+    The folder and its missing parents are created; when the block raises (an error, an
+    interrupt), each folder this call created is removed again if it is still empty, so a
+    failed run leaves no empty folder behind. A folder that existed before is left alone.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+
+    Yields
+    ------
+    str
+        The folder's absolute path.
+
+    Raises
+    ------
+    InputError
+        The path (or a parent) is a regular file, or the folder cannot be created
+        (read-only file system, no permission).
+
+    Examples
+    --------
+    >>> with output_folder("out/shapes") as folder:  # doctest: +SKIP
+    ...     save_mesh(os.path.join(folder, "a.obj"), V, F)
+    """
+    target = os.path.abspath(os.fspath(path))
+    missing = []
+    probe = target
+    while not os.path.lexists(probe):
+        missing.append(probe)
+        probe = os.path.dirname(probe)
+    if not os.path.isdir(probe):
+        raise InputError(f"cannot make the folder: {probe} is not a folder", path)
+    try:
+        os.makedirs(target, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"cannot make the folder: {exc.strerror or exc}", path) from None
+    try:
+        yield target
+    except BaseException:
+        for folder in missing:  # deepest first
+            with contextlib.suppress(OSError):
+                os.rmdir(folder)
+        raise
+
+
+@contextlib.contextmanager
 def atomic_output(path: str | os.PathLike) -> Iterator[str]:
     """Write a file atomically: yield a temporary path, then rename it to ``path``.
 
-    The temporary file is created (empty) in the destination's folder with the same
-    extension, so writers that pick a format from the extension work. When the block
-    succeeds the file is fsynced and renamed over ``path`` with ``os.replace`` (keeping the
-    mode of a file it replaces); when the block raises, it is removed and ``path`` is left
-    untouched.
+    The temporary file ``.<name>.tmp-<8 hex digits><ext>`` is created (empty) in the
+    destination's folder with the same extension, so writers that pick a format from the
+    extension work. When the block succeeds the file is fsynced and renamed over ``path``
+    with ``os.replace`` (keeping the mode of a file it replaces); when the block raises, it
+    is removed and ``path`` is left untouched.
+
+    A process killed while writing (SIGKILL, a power cut) cannot remove its temporary file.
+    So the temporary file is locked (``flock``) while it is written, and every call first
+    removes the unlocked temporary files of the same destination: what a dead writer left
+    behind. A concurrent writer's file is locked and stays.
 
     Parameters
     ----------
@@ -684,33 +752,78 @@ def atomic_output(path: str | os.PathLike) -> Iterator[str]:
     if not os.path.isdir(folder):
         raise InputError(f"cannot write: folder {folder} does not exist", path)
     root, ext = os.path.splitext(name)
+    _remove_stale_temporaries(folder, root, ext)
     while True:
         tmp = os.path.join(folder, f".{root}.tmp-{secrets.token_hex(4)}{ext}")
         try:
-            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+            lock = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
             break
         except FileExistsError:
             continue
         except OSError as exc:
             raise InputError(f"cannot write: {exc.strerror or exc}", path) from None
     try:
-        yield tmp
-        fd = os.open(tmp, os.O_RDONLY)
+        _lock(lock, blocking=True)
         try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
-        with contextlib.suppress(OSError):
-            os.chmod(tmp, stat.S_IMODE(os.stat(target).st_mode))
-        os.replace(tmp, target)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.remove(tmp)
-        raise
+            yield tmp
+            fd = os.open(tmp, os.O_RDONLY)
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+            with contextlib.suppress(OSError):
+                os.chmod(tmp, stat.S_IMODE(os.stat(target).st_mode))
+            os.replace(tmp, target)
+        except BaseException:
+            with contextlib.suppress(OSError):
+                os.remove(tmp)
+            raise
+    finally:
+        os.close(lock)
     with contextlib.suppress(OSError):  # make the rename itself durable (POSIX)
         fd = os.open(folder, os.O_RDONLY)
         try:
             os.fsync(fd)
+        finally:
+            os.close(fd)
+
+
+def _lock(fd: int, blocking: bool) -> bool:
+    """An exclusive ``flock`` on ``fd``; False if another process holds one (non-blocking).
+
+    Where ``fcntl`` is missing (not POSIX) nothing is locked and False is returned, so
+    that no temporary file is ever taken for stale there.
+    """
+    try:
+        import fcntl
+    except ImportError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | (0 if blocking else fcntl.LOCK_NB))
+    except BlockingIOError:
+        return False
+    except OSError:  # a file system without locks: never call a file stale
+        return False
+    return True
+
+
+def _remove_stale_temporaries(folder: str, root: str, ext: str) -> None:
+    """Remove the unlocked temporary files of ``<root><ext>`` in ``folder`` (dead writers')."""
+    pattern = re.compile(re.escape(f".{root}.tmp-") + "[0-9a-f]{8}" + re.escape(ext) + "$")
+    try:
+        names = [n for n in os.listdir(folder) if pattern.match(n)]
+    except OSError:
+        return
+    for stale in names:
+        candidate = os.path.join(folder, stale)
+        try:
+            fd = os.open(candidate, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
+        except OSError:  # gone already, a link, or not ours to open
+            continue
+        try:
+            if stat.S_ISREG(os.fstat(fd).st_mode) and _lock(fd, blocking=False):
+                with contextlib.suppress(OSError):
+                    os.remove(candidate)
         finally:
             os.close(fd)
 

@@ -23,7 +23,7 @@ from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
 from cagekit.io import atomic_output
 
-__all__ = ["MAX_FACES", "MAX_POINTS", "render_meshes", "unique_edges"]
+__all__ = ["MAX_FACES", "MAX_POINTS", "render_meshes", "render_grid", "unique_edges"]
 
 #: At most this many faces of one mesh are drawn; larger meshes are subsampled
 #: (deterministically) so that a picture takes seconds, not minutes.
@@ -385,4 +385,66 @@ def render_meshes(
 
     with atomic_output(path) as tmp:
         fig.savefig(tmp, format="png", dpi=_DPI, facecolor="white")
+    return os.fspath(path)
+
+
+def render_grid(path, rows, *, cages=None, titles=None, captions=None,
+                size: tuple[int, int] = (240, 300), same_scale: bool = False,
+                views: Sequence[tuple[float, float]] = ((20, -60),), up: str = "y") -> str:
+    """Rows of shapes in one PNG (atomically): each row a :func:`render_meshes` picture.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Output PNG file.
+    rows : sequence of sequences of (V, F)
+        The shapes of each row, left to right; rows may differ in length (shorter ones
+        are padded with white on the right).
+    cages, titles : sequences (one per row) of sequences (one per shape), optional
+        As :func:`render_meshes` takes them for one row; None for a row without.
+    captions : sequence of str, optional
+        One line under each row (None for none).
+    size, same_scale, views, up
+        As :func:`render_meshes`, for every row (``same_scale`` within a row).
+
+    Returns
+    -------
+    str
+        ``path``, as a string.
+
+    Examples
+    --------
+    >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+    >>> F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    >>> render_grid("grid.png", [[(V, F)] * 3, [(V, F)]])  # doctest: +SKIP
+    'grid.png'
+    """
+    import tempfile
+
+    from matplotlib.image import imread
+
+    rows = [list(r) for r in rows]
+    if not rows:
+        raise ValueError("render_grid needs at least one row")
+    for name, per_row in (("cages", cages), ("titles", titles), ("captions", captions)):
+        if per_row is not None and len(per_row) != len(rows):
+            raise ValueError(f"got {len(per_row)} {name} for {len(rows)} rows")
+    images = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for i, meshes in enumerate(rows):
+            png = os.path.join(tmp, f"row{i}.png")
+            render_meshes(meshes, png, cages=None if cages is None else cages[i],
+                          titles=None if titles is None else titles[i],
+                          caption=None if captions is None else captions[i], size=size,
+                          same_scale=same_scale, views=views, up=up)
+            images.append(imread(png)[..., :3])
+    width = max(image.shape[1] for image in images)
+    grid = np.concatenate([np.pad(image, ((0, 0), (0, width - image.shape[1]), (0, 0)),
+                                  constant_values=1.0) for image in images], axis=0)
+    fig = Figure(figsize=(grid.shape[1] / _DPI, grid.shape[0] / _DPI), dpi=_DPI)
+    ax = fig.add_axes((0, 0, 1, 1))
+    ax.imshow(grid, interpolation="nearest")
+    ax.axis("off")
+    with atomic_output(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=_DPI)
     return os.fspath(path)

@@ -369,7 +369,8 @@ def fit_cage_by_consistency(cage_v, cage_f, source_landmarks, target_landmarks, 
     if loss > initial:  # never worse than the start
         C, loss, mvc, lap = C0, *energy.value(C0)
     cage_out = A.apply(C)
-    phi_q = bind_numpy(energy.Qa.numpy(), C, energy.cage_f).weights
+    # the fitted cage may fold; the caller checks it (deformation transfer reports it)
+    phi_q = bind_numpy(energy.Qa.numpy(), C, energy.cage_f, check=False).weights
     return ConsistencyFit(
         cage_v=cage_out, cage_f=energy.cage_f, loss=loss, mvc_term=mvc, laplacian_term=lap,
         initial_loss=initial, converged=bool(loss < tolerance), tolerance=float(tolerance),

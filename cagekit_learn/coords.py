@@ -68,10 +68,13 @@ All intermediate values stay finite with finite local derivatives (the threshold
 bound them), and masked rows receive exactly zero gradient. Snap rows return the limit
 interpolants as differentiable functions of the point and the cage (barycentric on a face,
 linear along an edge; a vertex's one-hot row is constant): their gradient is that of the
-interpolant, not the (unbounded) derivative of MVC there. Far outside, where the weight sum
-cannot be resolved (``|sum w| <= 1e-15 sum |w|`` in float64, as in the core), the row gets
-the barycentric coordinates of the closest cage point, computed by the core's numba routine
-as a constant (zero gradient); that only happens about ``1e15`` cage sizes away.
+interpolant, not the (unbounded) derivative of MVC there. Far outside, rows follow the
+core's rule (:data:`cagekit.coords.mvc.FAR_BLEND`): from ``10 D`` to ``20 D`` from the
+cage's centre MVC is blended into the affine extension, beyond it the affine extension alone
+is used, both differentiable. Where a weight sum nearer in cannot be resolved (``|sum w| <=
+1e-15 sum |w|`` in float64, as in the core; not seen in practice), the row gets the
+barycentric coordinates of the closest cage point, computed by the core's numba routine as a
+constant (zero gradient).
 
 Memory
 ------
@@ -105,6 +108,7 @@ import torch
 from torch.utils.checkpoint import checkpoint
 
 from cagekit.cage import cage_topology, check_cage
+from cagekit.coords.mvc import FAR_BLEND
 from cagekit.errors import InputError
 
 __all__ = ["mean_value_coordinates", "CageBinding", "bind", "deform", "DEFAULT_SNAP",
@@ -412,7 +416,9 @@ def mean_value_coordinates(points, cage_v, cage_f, *, snap: float | None = None,
     cage_f : (m, 3) array_like or torch.Tensor of int
         Faces shared by the batch: closed, 2-manifold, consistently oriented. They are
         validated once with :func:`cagekit.cage.check_cage` on the first cage (an inward
-        cage is flipped), which raises :class:`cagekit.errors.CageError` otherwise.
+        cage is flipped), which raises :class:`cagekit.errors.CageError` otherwise. Cages
+        that intersect themselves are accepted here (a network's predictions may, during
+        training); the core's :func:`cagekit.bind` refuses them.
     snap : float, optional
         Switch-over distance relative to the cage's bounding-box diagonal (see the module
         docstring); defaults to :data:`DEFAULT_SNAP` of the dtype (1e-13 in float64, 1e-6 in
@@ -483,7 +489,8 @@ def _weights_and_faces(points, cage_v, cage_f, snap, chunk_size):
     if not bool(torch.isfinite(V.detach()).all()):
         raise InputError("cage_v contains NaN or inf")
     f_np = cage_f.detach().cpu().numpy() if isinstance(cage_f, torch.Tensor) else cage_f
-    faces_np = check_cage(V[0].detach().to("cpu", torch.float64).numpy(), np.asarray(f_np))
+    faces_np = check_cage(V[0].detach().to("cpu", torch.float64).numpy(), np.asarray(f_np),
+                          intersections=False)
     B = max(P.shape[0], V.shape[0])
     k = V.shape[1]
     P = P.expand(B, -1, -1)
@@ -520,7 +527,32 @@ def _weights_and_faces(points, cage_v, cage_f, snap, chunk_size):
         out = Pc.new_zeros((B, 0, k))
     else:
         out = outs[0] if len(outs) == 1 else torch.cat(outs, 1)
+        out = _blend_far_rows(Pc, Vc, faces_np, out)
     return (out[0] if unbatched else out), faces_np
+
+
+def _blend_far_rows(Pc, Vc, faces_np, out):
+    """The core's far-point rule: beyond ``FAR_BLEND[0]`` cage diagonals from the cage's
+    centre, MVC is blended into the affine extension (:mod:`cagekit.coords.mvc`)."""
+    lo, hi = FAR_BLEND
+    with torch.no_grad():
+        D = torch.linalg.vector_norm(Vc.amax(1) - Vc.amin(1), dim=-1).view(-1, 1, 1)
+        q = Pc.detach() / D
+        far = ~(torch.hypot(torch.hypot(q[..., 0], q[..., 1]), q[..., 2]) <= lo)  # (B, n)
+    if not bool(far.any()):
+        return out
+    # centre and diagonal are constants: the affine extension does not depend on them
+    q = Pc / D
+    r = torch.hypot(torch.hypot(q[..., 0], q[..., 1]), q[..., 2])
+    t = ((r - lo) / (hi - lo)).clamp(0.0, 1.0)
+    s = (t * t * (3.0 - 2.0 * t)).unsqueeze(-1)                            # (B, n, 1)
+    used = torch.as_tensor(np.unique(faces_np), device=Pc.device)
+    H = torch.cat([Vc[:, used] / D, torch.ones_like(Vc[:, used, :1])], -1)  # (B, u, 4)
+    Ph = torch.cat([q, torch.ones_like(q[..., :1])], -1)                   # (B, n, 4)
+    affine = out.new_zeros(out.shape)
+    affine[:, :, used] = Ph @ torch.linalg.solve(H.transpose(1, 2) @ H, H.transpose(1, 2))
+    blended = torch.where(s == 1.0, affine, (1.0 - s) * out + s * affine)
+    return torch.where(far.unsqueeze(-1), blended, out)
 
 
 def deform(weights, new_cage_v) -> torch.Tensor:

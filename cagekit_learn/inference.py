@@ -18,14 +18,16 @@ deformed cage in the target's normalised frame (``* target scale + target centre
 from __future__ import annotations
 
 import time
+import warnings
 
 import numpy as np
 import torch
 
+from cagekit.cage import check_cage, self_intersecting_faces
 from cagekit.coords import bind
 from cagekit.deformation import DeformResult, _as_pair
 from cagekit.deformation import deform as optimise
-from cagekit.errors import InputError
+from cagekit.errors import CagekitWarning, InputError
 from cagekit.geometry import normalize
 from cagekit.metrics import surface_samples
 from cagekit_learn.networks import NeuralCages
@@ -188,13 +190,19 @@ def deform_with_model(model: NeuralCages, source, target, *, points: int | None 
                                                               points, seed)
     cage_f = model.cage_f.cpu().numpy()
     cage_v, deformed_v = cage_n * ss + cs, deformed_n * st + ct
+    crossing = int(self_intersecting_faces(
+        cage_n, check_cage(cage_n, cage_f, intersections=False)).sum())
+    if crossing:
+        warnings.warn(CagekitWarning(f"the model's cage for the source intersects itself "
+                                     f"({crossing} of {len(cage_f)} faces): the result may "
+                                     "fold there"), stacklevel=2)
     if refine:
         result = optimise((Vs, Fs), (Vt, Ft), (cage_v, cage_f), seed=seed,
-                          initial_cage=deformed_v, **refine_options)
+                          initial_cage=deformed_v, check=False, **refine_options)
         result.method = "learned+refine"
         result.seconds = time.perf_counter() - start
         return result
-    binding = bind(Vs_n, cage_n, cage_f)
+    binding = bind(Vs_n, cage_n, cage_f, check=False)
     X = binding.deform(deformed_n) * st + ct
     if not np.isfinite(X).all():
         raise FloatingPointError("the model produced NaN or inf positions")

@@ -60,7 +60,7 @@ import torch
 
 from cagekit.errors import InputError
 from cagekit_learn import losses
-from cagekit_learn.checkpoint import CHECKPOINT_NAME, load_checkpoint, save_checkpoint
+from cagekit_learn.checkpoint import CHECKPOINT_NAME, load_checkpoint, resolve, save_checkpoint
 from cagekit_learn.coords import mean_value_coordinates
 from cagekit_learn.data import (
     FixedSource,
@@ -499,11 +499,22 @@ def _usable(path):
 
 
 def load_model(path, map_location="cpu") -> tuple[NeuralCages, dict]:
-    """A trained model (in eval mode) and its checkpoint from a file or run folder."""
+    """A trained model (in eval mode) and its checkpoint from a file or run folder.
+
+    Raises :class:`cagekit.InputError` naming the file for a checkpoint that cannot be
+    used, including one whose weights hold NaN or inf (a diverged run or a damaged file):
+    every prediction would be NaN.
+    """
     payload = load_checkpoint(path, map_location=map_location)
     with _usable(path):
         model = NeuralCages(ModelConfig.from_dict(payload["model_config"]))
         model.load_state_dict(payload["model"])
+    bad = [name for name, t in model.state_dict().items()
+           if t.is_floating_point() and not bool(torch.isfinite(t).all())]
+    if bad:
+        raise InputError(f"{len(bad)} of the model's weight tensors hold NaN or inf (first: "
+                         f"{bad[0]}): the training diverged or the file is damaged",
+                         str(resolve(path)))
     model.eval()
     return model, payload
 

@@ -15,7 +15,8 @@ stretchers); the proportions are fixed here:
   (0.72 high).
 
 y is up, both stand on y = 0, units are metres. Each is a union of closed, outward,
-2-manifold parts. The script is deterministic: it rewrites the files byte for byte.
+2-manifold parts. The script is deterministic: it rewrites the files (byte for byte on the
+same CPU, to the last digit elsewhere).
 """
 
 from __future__ import annotations

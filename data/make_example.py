@@ -5,7 +5,9 @@ Run from the repository root::
     python data/make_example.py            # writes data/example/{shape,cage,cage_deformed}.obj
 
 Everything is procedural and deterministic (no randomness at all), so running the script
-again reproduces the files byte for byte. The shape is y-up, about 2 units tall.
+again reproduces the files: byte for byte on the same CPU, to the last digits elsewhere
+(SIMD sin/cos and fused multiply-adds round differently; the test compares coordinates to
+1e-9 of the extent). The shape is y-up, about 2 units tall.
 
 - ``shape.obj``: a closed, watertight, outward-oriented surface of revolution (a vase or
   column) with 16 fluting ridges on its neck and a twisted band of knobs around its belly,

@@ -1,7 +1,10 @@
 """Shared pytest configuration: hypothesis profiles and common fixtures."""
 
+import contextlib
 import os
+import subprocess
 
+import pytest
 from hypothesis import HealthCheck, settings
 
 settings.register_profile(
@@ -11,3 +14,29 @@ settings.register_profile(
     "thorough", deadline=None, max_examples=1000, suppress_health_check=[HealthCheck.too_slow]
 )
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
+
+
+@contextlib.contextmanager
+def _read_only(folder):
+    """Make ``folder`` read-only for the block, even for root (a read-only bind mount)."""
+    if os.geteuid() != 0:
+        folder.chmod(0o555)
+        try:
+            yield folder
+        finally:
+            folder.chmod(0o755)
+        return
+    mounted = subprocess.run(["mount", "--bind", "-o", "ro", str(folder), str(folder)],
+                             capture_output=True)
+    if mounted.returncode != 0:
+        pytest.skip("root, and a read-only bind mount is not permitted here")
+    try:
+        yield folder
+    finally:
+        subprocess.run(["umount", str(folder)], check=False)
+
+
+@pytest.fixture
+def read_only():
+    """``with read_only(folder):`` makes a folder read-only, for root too."""
+    return _read_only

@@ -75,3 +75,43 @@ def test_winding_numbers_and_enclosure():
     assert not cage_encloses(p, v, f)
     # a vertex of the cage counts as enclosed (on the surface)
     assert cage_encloses(v[:1] * 0.999999, v, f)
+
+
+def _folded_box():
+    """A box with one vertex pushed through the opposite face: its faces cross."""
+    v, f = box_cage(1)
+    v = v.copy()
+    v[0] = -1.5 * v[0]
+    return v, f
+
+
+def test_self_intersecting_cage_is_refused_unless_asked_not_to():
+    from cagekit import bind
+    from cagekit.cage import self_intersecting_faces
+
+    v, f = _folded_box()
+    crossing = self_intersecting_faces(v, f)
+    assert crossing.shape == (len(f),) and crossing.sum() > 0
+    assert not self_intersecting_faces(*box_cage(2)).any()  # shared edges do not count
+    with pytest.raises(CageError, match=rf"intersects itself \({crossing.sum()} of its 12"):
+        check_cage(v, f, name="folded.obj")
+    with pytest.raises(CageError, match="intersects itself"):
+        bind(np.zeros((1, 3)), v, f)
+    assert np.array_equal(check_cage(v, f, intersections=False), f)
+    w = bind(np.zeros((1, 3)), v, f, check=False).weights  # defined, if folded
+    assert np.isfinite(w).all() and abs(w.sum() - 1) < 1e-12
+
+
+@pytest.mark.parametrize("scale", [1e-120, 1e120])
+def test_tiny_and_huge_cages_are_valid(scale):
+    """Areas and volumes are judged scale-free: no underflow to 'zero area'."""
+    v, f = box_cage(2)
+    assert np.array_equal(check_cage(v * scale, f), f)
+
+
+def test_distance_in_diagonals_does_not_overflow():
+    from cagekit.cage import distance_in_diagonals
+
+    v, _ = box_cage(1)  # diagonal 2 sqrt 3
+    r = distance_in_diagonals([[1e300, 1e300, 0.0], [0.0, 0.0, 0.0]], v)
+    assert r[0] == pytest.approx(np.sqrt(2) * 1e300 / (2 * np.sqrt(3))) and r[1] == 0.0

@@ -339,12 +339,21 @@ def test_fit_cage_json_preview_and_cage(tmp_path):
 
 def test_fit_cage_template_text_output(tmp_path):
     out = tmp_path / "cage.off"
-    # the template has 80 faces whatever --faces asks
-    result = cagekit("fit-cage", SHAPE, "-o", out, "--method", "template", "--faces", "50")
+    result = cagekit("fit-cage", SHAPE, "-o", out, "--method", "template", "--faces", "80")
     assert result.returncode == 0, result.stderr
     assert "80-face cage, every check passed" in result.stdout
     cv, cf = load_obj(out)
     assert cv.shape == (42, 3) and cf.shape == (80, 3)
+
+
+def test_fit_cage_template_below_its_face_count_is_refused(tmp_path):
+    # the template has 80 faces: a smaller budget cannot be met, so nothing is written
+    out = tmp_path / "cage.obj"
+    result = cagekit("fit-cage", SHAPE, "-o", out, "--method", "template", "--faces", "10")
+    assert result.returncode == 2
+    assert len(result.stderr.strip().splitlines()) == 1
+    assert "80 faces" in result.stderr and "10" in result.stderr
+    assert not out.exists()
 
 
 def test_render_fewer_cages_than_meshes(tmp_path):

@@ -180,6 +180,29 @@ def test_normalize_rejects_degenerate_input():
         denormalize(SQUARE_V, [0, 0], 1.0)
 
 
+@pytest.mark.parametrize("scale", [1e-290, 1e-150, 1.0, 1e150, 1e300])
+def test_bounding_box_is_resolvable_at_any_scale(scale):
+    from cagekit.geometry import bounding_box, bounding_box_diagonal
+
+    V = np.array([[0.0, 0, 0], [2.0, 1, 0], [1.0, 0, 1]]) * scale + 3.0 * scale
+    center, extent = bounding_box(V)
+    np.testing.assert_allclose(center / scale, [4.0, 3.5, 3.5], rtol=1e-15)
+    np.testing.assert_allclose(extent / scale, [2.0, 1.0, 1.0], rtol=1e-15)
+    assert bounding_box_diagonal(extent) / scale == pytest.approx(np.sqrt(6.0), rel=1e-15)
+    assert np.abs(normalize(V)[0]).max() == pytest.approx(1.0)
+
+
+def test_bounding_box_refuses_what_float64_cannot_resolve():
+    from cagekit.geometry import bounding_box
+
+    with pytest.raises(InputError, match="too small to resolve"):
+        bounding_box([[0.0, 0, 0], [1e-300, 0, 0]])
+    with pytest.raises(InputError, match="overflows"):
+        bounding_box([[-1e308, 0, 0], [1e308, 0, 0]])
+    with pytest.raises(InputError, match="coincide"):
+        bounding_box([[5.0, 5, 5], [5.0, 5, 5]])
+
+
 # ------------------------------------------------------------------------ sampling
 
 

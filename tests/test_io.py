@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from cagekit import io as cio
-from cagekit.errors import InputError, LandmarkFileError, MeshFileError
+from cagekit.errors import InputError, LandmarkFileError, MeshFileError, MeshFileWarning
 
 # A tetrahedron whose vertex order is deliberately not sorted in any way.
 TET_V = np.array([[0.5, 0.25, 1.0], [0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
@@ -332,7 +332,6 @@ BAD_FILES = [
     ("range.obj", OBJ_HEAD + "f 1 2 7\n", "vertex index 7 is out of range"),
     ("zero.obj", OBJ_HEAD + "f 0 1 2\n", "index 0"),
     ("before.obj", OBJ_HEAD + "f -1 -2 -4\n", "before the first vertex"),
-    ("edge.obj", OBJ_HEAD + "f 1 2\n", "at least 3 vertices"),
     ("twocoords.obj", "v 1 2\n", "3 coordinates"),
     ("junkindex.obj", OBJ_HEAD + "f 1 2 x\n", "not a vertex index"),
     ("garbage.ply", "this is not a ply file\n", "not a PLY file"),
@@ -344,7 +343,6 @@ BAD_FILES = [
     ("range.ply", PLY_HEAD + "0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n", "out of range"),
     ("negative.ply", PLY_HEAD + "0 0 0\n1 0 0\n0 1 0\n3 0 -1 2\n", "out of range"),
     ("nan.ply", PLY_HEAD + "0 0 0\nnan 0 0\n0 1 0\n3 0 1 2\n", "not finite"),
-    ("edge.ply", PLY_HEAD + "0 0 0\n1 0 0\n0 1 0\n2 0 1\n", "at least 3 vertices"),
     ("noxyz.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n1\n",
      "x, y, z"),
     ("binary.ply", binary_ply(TET_V, TET_F)[:-5], "truncated"),
@@ -367,6 +365,40 @@ BAD_FILES = [
     ("mesh.foo", "v 0 0 0\n", "unknown extension"),
     ("noextension", "v 0 0 0\n", "unknown extension"),
 ]
+
+
+SHORT_FACES = [
+    ("lines.obj", OBJ_HEAD + "v 1 1 0\nf 1 2 3\nf 1 2\nl 2 3\nf 3\nf 2 4 3\nf 4 1\n",
+     "dropped 3 face(s) with fewer than 3 vertices (the first at line 6); kept 2"),
+    ("lines.off", "OFF\n4 4 0\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n2 0 1\n"
+     "3 1 3 2\n1 3\n", "dropped 2 face(s) with fewer than 3 vertices (the first at line 8)"),
+    ("lines.ply", PLY_HEAD.replace("element face 1", "element face 2") + "0 0 0\n1 0 0\n"
+     "0 1 0\n2 0 1\n3 0 1 2\n", "dropped 1 face(s) with fewer than 3 vertices (the first "
+     "at face 0)"),
+]
+
+
+@pytest.mark.parametrize("name, content, match", SHORT_FACES, ids=[c[0] for c in SHORT_FACES])
+def test_faces_with_fewer_than_3_vertices_are_dropped_with_one_warning(tmp_path, name, content,
+                                                                       match):
+    # real files carry edges and points in their face lists: the rest of the file loads
+    path = write(tmp_path / name, content)
+    with pytest.warns(MeshFileWarning) as caught:
+        V, F = cio.load_mesh(path)
+    messages = [str(w.message) for w in caught if issubclass(w.category, MeshFileWarning)]
+    assert len(messages) == 1 and match in messages[0] and os.fspath(path) in messages[0]
+    assert len(V) == (3 if name.endswith(".ply") else 4)  # every vertex, in order
+    assert np.array_equal(V[1], [1, 0, 0])
+    assert F.tolist() == ([[0, 1, 2]] if name.endswith(".ply") else [[0, 1, 2], [1, 3, 2]])
+
+
+def test_a_file_whose_faces_are_all_lines_is_a_point_cloud_or_no_mesh(tmp_path):
+    path = write(tmp_path / "edges.obj", OBJ_HEAD + "f 1 2\nf 2 3\n")
+    with pytest.warns(MeshFileWarning, match="dropped 2"):
+        V, F = cio.load_shape(path)
+    assert len(V) == 3 and F.shape == (0, 3)
+    with pytest.warns(MeshFileWarning), pytest.raises(MeshFileError, match="no faces"):
+        cio.load_mesh(path)
 
 
 @pytest.mark.parametrize("name, content, match", BAD_FILES, ids=[b[0] for b in BAD_FILES])
@@ -423,6 +455,7 @@ SEED_FILES = {
 }
 
 
+@pytest.mark.filterwarnings("ignore::cagekit.errors.MeshFileWarning")
 @given(
     st.sampled_from(sorted(SEED_FILES)),
     st.lists(st.tuples(st.floats(0, 1), st.integers(0, 12), st.binary(max_size=6)), max_size=4),
@@ -502,6 +535,53 @@ def test_atomic_output_replaces_on_success_only(tmp_path):
     with cio.atomic_output(tmp_path / "fresh.png") as tmp:
         write(tmp, b"\x89PNG")
     assert (tmp_path / "fresh.png").read_bytes() == b"\x89PNG"
+
+
+def test_a_killed_writers_temporary_is_removed_by_the_next_write(tmp_path):
+    """SIGKILL leaves a hidden temporary behind; the next write of the same output removes
+    it, while a live writer's temporary (locked) is left alone."""
+    import signal
+    import subprocess
+    import sys
+
+    target = tmp_path / "big.obj"
+    code = ("import sys, time\n"
+            "from cagekit.io import atomic_output\n"
+            "with atomic_output(sys.argv[1]) as tmp:\n"
+            "    open(tmp, 'w').write('x' * 100000)\n"
+            "    print('writing', flush=True)\n"
+            "    time.sleep(600)\n")
+    writer = subprocess.Popen([sys.executable, "-c", code, str(target)],
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        assert writer.stdout.readline().strip() == "writing"
+        (temporary,) = [n for n in os.listdir(tmp_path) if n.startswith(".big.tmp-")]
+        cio.save_mesh(target, TET_V, TET_F)  # the writer is alive: its file stays
+        assert temporary in os.listdir(tmp_path)
+    finally:
+        writer.send_signal(signal.SIGKILL)
+        writer.wait()
+    assert temporary in os.listdir(tmp_path)  # what SIGKILL leaves
+    (tmp_path / ".other.tmp-0123abcd.obj").write_text("another output's")
+    cio.save_mesh(target, TET_V, TET_F)
+    assert sorted(os.listdir(tmp_path)) == [".other.tmp-0123abcd.obj", "big.obj"]
+
+
+def test_output_folder_removes_the_folders_it_made_when_the_block_fails(tmp_path):
+    with pytest.raises(RuntimeError), cio.output_folder(tmp_path / "a" / "b" / "c"):
+        raise RuntimeError("the run failed")
+    assert os.listdir(tmp_path) == []
+    (tmp_path / "kept").mkdir()
+    with pytest.raises(KeyboardInterrupt), cio.output_folder(tmp_path / "kept" / "new"):
+        raise KeyboardInterrupt
+    assert os.listdir(tmp_path) == ["kept"] and os.listdir(tmp_path / "kept") == []
+    with cio.output_folder(tmp_path / "x" / "y") as folder:
+        write(os.path.join(folder, "f.txt"), "out")
+    assert (tmp_path / "x" / "y" / "f.txt").read_text() == "out"
+    write(tmp_path / "file", "a file")
+    with pytest.raises(InputError, match="is not a folder"), \
+            cio.output_folder(tmp_path / "file" / "sub"):
+        pass
 
 
 def test_failed_save_leaves_existing_file_untouched(tmp_path, monkeypatch):

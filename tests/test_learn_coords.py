@@ -190,8 +190,10 @@ def test_in_plane_faces_skipped_like_the_core():
 @pytest.mark.parametrize("name", ["ico2", "star"])
 def test_ill_conditioned_points_as_accurate_as_the_core(name):
     """Outside points closest to the plane of a face they lie off: the disagreement with the
-    core is conditioning, not a bug -- both are equally close to a long-double evaluation
-    (the textbook formula, fine at these distances from the planes)."""
+    core is conditioning, not a bug -- both are within the conditioning bound of a
+    long-double evaluation (the textbook formula, fine at these distances from the planes):
+    each row within 5e3 eps D / h (measured: up to about 800 for either). A bound on the
+    ratio of the two errors would test the CPU's rounding, not the code."""
     v, f = CAGES[name]
     D = diag(v)
     rng = np.random.default_rng(13)
@@ -199,12 +201,15 @@ def test_ill_conditioned_points_as_accurate_as_the_core(name):
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     p = 0.5 * (v.min(axis=0) + v.max(axis=0)) + rng.uniform(0.6, 2.0, (3000, 1)) * D * d
     h = outside_plane_distance(p, v, f)
-    p = p[np.argsort(h)[:60]]
-    assert outside_plane_distance(p, v, f).max() < 1e-3 * D
+    nearest = np.argsort(h)[:60]
+    p, h = p[nearest], h[nearest]
+    assert h.max() < 1e-3 * D
     ref = mean_value_coordinates_textbook(p, v, f, dtype=np.longdouble).astype(np.float64)
-    err_core = np.abs(core_mvc(p, v, f) - ref).max()
-    err_torch = np.abs(torch_w(p, v, f).numpy() - ref).max()
-    assert err_torch <= 3 * err_core + 1e-13, (err_torch, err_core)
+    bound = 5e3 * np.finfo(np.float64).eps * D / h
+    err_core = np.abs(core_mvc(p, v, f) - ref).max(axis=1)
+    err_torch = np.abs(torch_w(p, v, f).numpy() - ref).max(axis=1)
+    assert np.all(err_core <= bound) and np.all(err_torch <= bound), (
+        (err_core / bound).max(), (err_torch / bound).max())
     # float32 rows this ill-conditioned are recomputed in float64
     err32 = np.abs(torch_w(p, v, f, dtype=F32).double().numpy() - ref).max()
     assert err32 <= 1e-6
@@ -356,7 +361,8 @@ def test_chunking_gives_the_same_result():
     V = torch.tensor(v)
     a = mean_value_coordinates(p, V, f, chunk_size=64)
     b = mean_value_coordinates(p, V, f, chunk_size=100000)
-    torch.testing.assert_close(a, b, rtol=0, atol=1e-15)
+    # different chunk sizes are different matrix sizes, which a BLAS may sum in other orders
+    torch.testing.assert_close(a, b, rtol=0, atol=1e-13)
     # gradients too
     P1 = p.clone().requires_grad_()
     P2 = p.clone().requires_grad_()
@@ -449,12 +455,12 @@ def test_shapes_broadcasting_and_binding():
     assert w.shape == (5, 8) and w.dtype == F64
     wb = mean_value_coordinates(torch.tensor(p), V, f)              # (k, 3) cage broadcast
     assert wb.shape == (2, 5, 8)
-    torch.testing.assert_close(wb[0], w, rtol=0, atol=1e-15)
+    torch.testing.assert_close(wb[0], w, rtol=0, atol=1e-13)  # BLAS sizes differ
     cages = torch.stack([V, 2 * V])
     w2 = mean_value_coordinates(torch.tensor(p[0]), cages, f)        # points broadcast
     assert w2.shape == (2, 5, 8)
     torch.testing.assert_close(w2[1], mean_value_coordinates(torch.tensor(p[0]), 2 * V, f),
-                               rtol=0, atol=1e-15)
+                               rtol=0, atol=1e-13)
     assert mean_value_coordinates(torch.zeros(2, 0, 3, dtype=F64), V, f).shape == (2, 0, 8)
     # bind / deform
     b = bind(torch.tensor(p), V, f)

@@ -140,6 +140,23 @@ def test_train_command_refuses_to_overwrite_a_run_and_bad_data(run_dir, tmp_path
     assert code == 2 and "nowhere" in err
     code, _, err = _cli(["train", "synthetic:spoons:4", "-o", str(tmp_path / "r")], capsys)
     assert code == 2 and "synthetic:FAMILY" in err
+    assert not (tmp_path / "r").exists()  # a failed run leaves no empty run folder
+
+
+def test_a_checkpoint_with_nan_weights_is_blamed_on_the_checkpoint(run_dir, pair, tmp_path,
+                                                                   capsys):
+    from cagekit_learn.checkpoint import load_checkpoint, save_checkpoint
+
+    payload = load_checkpoint(run_dir)
+    name = next(k for k, t in payload["model"].items() if t.is_floating_point())
+    payload["model"][name] = torch.full_like(payload["model"][name], float("nan"))
+    bad = tmp_path / "nan.pt"
+    save_checkpoint(bad, payload)
+    code, _, err = _cli(["deform", str(pair[0]), str(pair[1]), "-o", str(tmp_path / "o.obj"),
+                         "--model", str(bad)], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert str(bad) in err and "NaN" in err and str(pair[0]) not in err
+    assert not (tmp_path / "o.obj").exists()
 
 
 def test_cagekit_deform_without_model_never_imports_torch(pair, tmp_path):

@@ -6,7 +6,9 @@ D is the cage's bounding-box diagonal. Bounds tested:
 * linear precision <= 1e-6 D near faces, edges and vertices (1e-12 D .. 1e-4 D away, both
   sides) and outside within 2 D of the centre;
 * exact interpolation <= 1e-12 D on vertices, edges (coplanar ones too) and faces;
-* finite output and unit row sums far outside;
+* finite output and unit row sums far outside; beyond 10 D the blend into the affine
+  extension: the rest cage reproduces points to 1e-12 of their distance at any distance,
+  weights continuous across the blend, far points moved by the cage's affine fit;
 * affine invariance, agreement with the independently derived textbook formula.
 """
 
@@ -338,3 +340,62 @@ def test_bad_inputs():
 def test_empty_points():
     v, f = box_cage(1)
     assert bind(np.zeros((0, 3)), v, f).weights.shape == (0, 8)
+
+
+# --------------------------------------------------------------------------- far outside
+
+
+def _directions(n, seed):
+    d = np.random.default_rng(seed).normal(size=(n, 3))
+    return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+@pytest.mark.parametrize("name", ["box1", "star", "flat-box"])
+def test_far_points_are_reproduced_at_any_distance(name):
+    """Linear precision to rounding of |p| from 10 D to 1e290 D (it used to give a cage
+    vertex or the origin from about 1e15 D on)."""
+    v, f = CAGES[name]
+    D = diag(v)
+    centre = (v.min(axis=0) + v.max(axis=0)) / 2
+    p = centre + _directions(400, 3) * D * 10.0 ** np.random.default_rng(4).uniform(
+        1, 290, (400, 1))
+    w = mean_value_coordinates(p, v, f)
+    assert np.all(np.isfinite(w))
+    R = np.abs(p).max(axis=1)
+    assert np.all(np.abs(w @ v - p).max(axis=1) <= 1e-12 * R)
+    assert np.all(np.abs(w.sum(axis=1) - 1) <= 1e-13 * np.abs(w).sum(axis=1))
+
+
+def test_weights_are_continuous_across_the_far_blend():
+    from cagekit.coords.mvc import FAR_BLEND
+
+    v, f = CAGES["star"]
+    D = diag(v)
+    centre = (v.min(axis=0) + v.max(axis=0)) / 2
+    d = _directions(20, 5)
+    for r in FAR_BLEND:
+        inner = mean_value_coordinates(centre + d * D * r * (1 - 1e-9), v, f)
+        outer = mean_value_coordinates(centre + d * D * r * (1 + 1e-9), v, f)
+        assert np.abs(inner - outer).max() <= 1e-6 * np.abs(inner).max()
+
+
+def test_far_points_move_by_the_affine_fit_of_the_cage():
+    from cagekit.coords.mvc import FAR_BLEND, affine_extension_weights
+
+    v, f = CAGES["star"]
+    D = diag(v)
+    p = _directions(30, 6) * D * 2 * FAR_BLEND[1]
+    moved = v + np.random.default_rng(7).normal(scale=0.1, size=v.shape)
+    b = bind(p, v, f)
+    # the least-squares affine map of the cage's motion
+    H = np.hstack([v, np.ones((len(v), 1))])
+    At = np.linalg.lstsq(H, moved, rcond=None)[0]
+    expected = np.hstack([p, np.ones((len(p), 1))]) @ At
+    assert np.abs(b.deform(moved) - expected).max() <= 1e-9 * D * 2 * FAR_BLEND[1]
+    assert np.allclose(affine_extension_weights(p, v, f), b.weights, atol=1e-12)
+
+
+def test_points_whose_weights_overflow_are_refused():
+    v, f = box_cage()
+    with pytest.raises(InputError, match="overflow"):
+        bind([[1e300, 0.0, 0.0]], v * 1e-100, f)

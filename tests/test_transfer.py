@@ -225,6 +225,16 @@ def test_grid_in_a_missing_folder_is_refused_before_any_work(data, tmp_path):
     assert not (tmp_path / "res").exists()
 
 
+def test_grid_that_is_not_png_is_refused(data, tmp_path):
+    # the picture is PNG: a .jpg name would get PNG bytes
+    out, _ = data
+    result = _run([*_inputs(out), out / "poses", "-o", tmp_path / "res",
+                   "--grid", tmp_path / "grid.jpg"])
+    assert result.exit_code == 2 and "grid.jpg" in result.stderr and ".png" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "res").exists() and not (tmp_path / "grid.jpg").exists()
+
+
 def test_match_landmarks_pairs_by_label_and_reports_the_rest():
     a = {"nose": [0, 1, 2], "chin": [0, 0, 1], "l_eye": [1, 1, 1], "r_eye": [-1, 1, 1],
          "ear": [2, 0, 0]}

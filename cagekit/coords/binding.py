@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numba
 import numpy as np
 
-from cagekit.cage import cage_encloses, check_cage
-from cagekit.errors import InputError
+from cagekit.cage import cage_encloses, check_cage, distance_in_diagonals, winding_numbers
+from cagekit.errors import InputError, OutsideCageWarning
 
-__all__ = ["CageBinding", "bind", "METHODS"]
+__all__ = ["CageBinding", "bind", "warn_outside", "METHODS"]
 
 METHODS = ("mvc",)
 
@@ -63,6 +65,9 @@ class CageBinding:
     def deform(self, new_cage_v) -> np.ndarray:
         """Positions of the bound points for moved cage vertices.
 
+        Raises :class:`cagekit.InputError` for a cage of the wrong shape, with NaN or inf,
+        or so large that the positions overflow float64.
+
         Parameters
         ----------
         new_cage_v : (k, 3) array_like of float
@@ -87,15 +92,19 @@ class CageBinding:
                              f"{self.cage_v.shape}: vertex counts must match")
         if not np.all(np.isfinite(new)):
             raise InputError("deformed cage has NaN or inf coordinates")
-        return _weights_times_vertices(self.weights, np.ascontiguousarray(new))
+        out = _weights_times_vertices(self.weights, np.ascontiguousarray(new))
+        if not np.all(np.isfinite(out)):
+            raise InputError("the deformed positions overflow float64 (cage or points too "
+                             "large)")
+        return out
 
     def encloses(self, points) -> bool:
         """Whether the given points (usually the bound ones) all lie inside the cage."""
         return cage_encloses(points, self.cage_v, self.cage_f)
 
 
-def bind(points, cage_v, cage_f, method: str = "mvc", chunk_size: int | None = None
-         ) -> CageBinding:
+def bind(points, cage_v, cage_f, method: str = "mvc", chunk_size: int | None = None, *,
+         check: bool = True) -> CageBinding:
     """Compute the coordinates of points with respect to a cage.
 
     Parameters
@@ -108,13 +117,19 @@ def bind(points, cage_v, cage_f, method: str = "mvc", chunk_size: int | None = N
         Cage vertices.
     cage_f : (m, 3) array_like of int
         Cage faces: closed and 2-manifold. A consistently inward cage is flipped; an open,
-        non-manifold or inconsistently oriented one raises :class:`cagekit.CageError`.
+        non-manifold or inconsistently oriented one raises :class:`cagekit.CageError`, and
+        so does (with ``check``) one that intersects itself.
     method : {"mvc"}, default "mvc"
         Mean value coordinates (Ju, Schaefer & Warren 2005). Green coordinates are not
         available yet.
     chunk_size : int, optional
         Unused by MVC, whose scratch memory is already independent of ``n``; accepted so
         callers can pass it uniformly.
+    check : bool, default True
+        Run the exact self-intersection test on the cage (about a millisecond per 100
+        faces). False skips it, for speed, when the cage is known to be free of it (a
+        cage from :func:`cagekit.fit_cage`) or folds on purpose; the checks MVC itself
+        needs (closed, 2-manifold, oriented) always run.
 
     Returns
     -------
@@ -133,6 +148,60 @@ def bind(points, cage_v, cage_f, method: str = "mvc", chunk_size: int | None = N
     if method not in METHODS:
         raise InputError(f"unknown coordinates {method!r}; available: {', '.join(METHODS)}")
     v = np.ascontiguousarray(cage_v, dtype=np.float64)
-    faces = check_cage(v, cage_f)
+    faces = check_cage(v, cage_f, intersections=check)
     weights = mean_value_coordinates(points, v, faces, check=False)
     return CageBinding(weights, v, faces, method)
+
+
+def warn_outside(points, cage_v, cage_f, *, shape: str = "the shape",
+                 cage: str = "the cage") -> float:
+    """Warn when points lie outside their cage, with the share outside.
+
+    Every command that binds a shape calls it, so they all warn alike. Points outside a
+    cage are extrapolated by its coordinates (MVC is defined there); those beyond
+    :data:`cagekit.coords.mvc.FAR_BLEND` ``[0]`` cage diagonals follow the cage's affine
+    fit (see :mod:`cagekit.coords.mvc`) and are counted in the message.
+
+    Parameters
+    ----------
+    points : (n, 3) array_like of float
+    cage_v : (k, 3) array_like of float
+    cage_f : (m, 3) array_like of int
+        Outward faces (:func:`cagekit.check_cage`).
+    shape, cage : str
+        How the message names them (file names on the command line).
+
+    Returns
+    -------
+    float
+        The share of points outside (winding number below 0.5), 0 when none is: then
+        nothing is issued. Otherwise an :class:`~cagekit.errors.OutsideCageWarning`.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> from cagekit.shapes import box_cage
+    >>> v, f = box_cage()
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     share = warn_outside([[0.0, 0, 0], [5.0, 0, 0]], v, f)
+    >>> share, str(caught[0].message)
+    (0.5, '50% of the shape (1 of 2 points) lies outside the cage: extrapolated')
+    """
+    from cagekit.coords.mvc import FAR_BLEND
+
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    outside = winding_numbers(points, cage_v, cage_f) < 0.5 - 1e-9
+    count = int(outside.sum())
+    if not count:
+        return 0.0
+    share = count / len(points)
+    far = int((distance_in_diagonals(points[outside], cage_v) > FAR_BLEND[0]).sum())
+    percent = f"{100 * share:.3g}%"
+    text = (f"{percent} of {shape} ({count:,} of {len(points):,} points) lies outside "
+            f"{cage}: extrapolated")
+    if far:
+        text += (f"; {far:,} of them more than {FAR_BLEND[0]:g} cage diagonals away follow "
+                 "the cage's affine fit")
+    warnings.warn(OutsideCageWarning(text), stacklevel=2)
+    return share

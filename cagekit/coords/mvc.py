@@ -52,11 +52,21 @@ weights decay like ``D**2 / R**3`` and cancel: far outside, the coordinates are 
 ill-conditioned function of the point, whatever the formula. Within ``2 D`` of the cage's
 centre linear precision stays below ``1e-12 D`` (tested to ``1e-6 D``). Beyond, its error
 grows like ``(R / D)**4`` (worst case measured by ``benchmarks/mvc_precision.py``:
-``3e-10 D`` at ``10 D``, ``3e-6 D`` at ``100 D``, ``0.1 D`` at ``1000 D``; the textbook
-formula is worse by one to six orders of magnitude). The output always stays finite and
-sums to one (to the rounding of the weights); if the weight sum cannot be resolved at
-all (``|sum w| <= 1e-15 sum |w|``), the point gets the barycentric coordinates of its
-closest cage point instead.
+``3e-10 D`` at ``10 D``, ``3e-6 D`` at ``100 D``, ``0.1 D`` at ``1000 D``, a cage vertex or
+the origin from about ``1e15 D`` on; the textbook formula is worse by one to six orders of
+magnitude).
+
+So far points get other coordinates (:data:`FAR_BLEND`): from ``10 D`` to ``20 D`` from the
+centre of the cage's bounding box the MVC row is blended (smoothstep in ``R``) into the
+*affine extension* of the cage (:func:`affine_extension_weights`), and beyond ``20 D`` the
+affine extension alone is used. Its coordinates satisfy partition of unity and linear
+precision exactly (to rounding relative to ``R``), and so does any blend of the two: the
+rest cage maps every point to itself at any distance, and a moved cage moves far points by
+the least-squares affine fit of the cage vertices' motion. Only within ``10 D`` are the
+coordinates MVC's; a point so far that its coordinates overflow float64 (about ``1e300
+D``) is refused with an :class:`~cagekit.errors.InputError`. If a weight sum nearer in
+cannot be resolved at all (``|sum w| <= 1e-15 sum |w|``, not seen in practice), the point
+gets the barycentric coordinates of its closest cage point.
 
 Speed
 -----
@@ -78,12 +88,17 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from cagekit.cage import cage_topology
+from cagekit.cage import cage_topology, distance_in_diagonals
 from cagekit.coords.fastangle import half_angle_over_sin
+from cagekit.geometry import bounding_box_diagonal
 
-__all__ = ["mean_value_coordinates", "DEFAULT_SNAP"]
+__all__ = ["mean_value_coordinates", "affine_extension_weights", "DEFAULT_SNAP", "FAR_BLEND"]
 
 DEFAULT_SNAP = 1e-13
+
+#: distances from the centre of the cage's bounding box, in bounding-box diagonals, between
+#: which MVC is blended into the affine extension; beyond the second, the extension alone
+FAR_BLEND = (10.0, 20.0)
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
@@ -420,13 +435,15 @@ def mean_value_coordinates(points, cage_v, cage_f, snap: float = DEFAULT_SNAP, o
         raise InputError(f"points must be an (n, 3) array, got shape {pts.shape}")
     if not np.all(np.isfinite(pts)):
         raise InputError("points contain NaN or inf")
-    # Work relative to the cage's bounding-box centre: the result is translation invariant
-    # and this keeps the relative vectors as accurate as the input allows.
+    # Work relative to the cage's bounding-box centre, in units of its diagonal: the result
+    # is similarity invariant, this keeps the relative vectors as accurate as the input
+    # allows, and squares of tiny or huge coordinates neither underflow nor overflow.
     lo, hi = cage_v.min(axis=0), cage_v.max(axis=0)
     centre = 0.5 * (lo + hi)
-    diag = float(np.linalg.norm(hi - lo))
-    cv = np.ascontiguousarray(cage_v - centre)
-    px = np.ascontiguousarray(pts - centre)
+    diag = bounding_box_diagonal(hi - lo)
+    cv = np.ascontiguousarray((cage_v - centre) / diag)
+    with np.errstate(over="ignore"):
+        px = np.ascontiguousarray((pts - centre) / diag)
     topo = cage_topology(faces)
     normals = np.cross(cv[faces[:, 1]] - cv[faces[:, 0]], cv[faces[:, 2]] - cv[faces[:, 0]])
     norms = np.linalg.norm(normals, axis=1, keepdims=True)
@@ -439,6 +456,69 @@ def mean_value_coordinates(points, cage_v, cage_f, snap: float = DEFAULT_SNAP, o
     face_off = np.einsum("ij,ij->i", cv[faces[:, 0]], normals)
     if n:
         _mvc_kernel(px, cv, np.ascontiguousarray(faces), topo.edges, topo.face_edges,
-                    topo.face_edge_signs, normals, face_off, snap * diag,
+                    topo.face_edge_signs, normals, face_off, snap,
                     64 * numba.get_num_threads(), out)
+        _blend_far_rows(px, cv, faces, out)
+    return out
+
+
+def _blend_far_rows(px, cv, faces, out):
+    """Rows of points beyond ``FAR_BLEND[0]`` diagonals: blend into the affine extension."""
+    from cagekit.errors import InputError
+
+    r = distance_in_diagonals(px, cv)  # px and cv are both centred on the cage's box
+    far = np.flatnonzero(~(r <= FAR_BLEND[0]))
+    if not len(far):
+        return
+    lo, hi = FAR_BLEND
+    t = np.clip((r[far] - lo) / (hi - lo), 0.0, 1.0)
+    s = (t * t * (3.0 - 2.0 * t))[:, None]
+    with np.errstate(over="ignore", invalid="ignore"):
+        affine = affine_extension_weights(px[far], cv, faces)
+        rows = np.where(s == 1.0, affine, (1.0 - s) * out[far] + s * affine)
+    bad = ~np.isfinite(rows).all(axis=1)
+    if bad.any():
+        raise InputError(f"{int(bad.sum())} points lie so far from the cage (about 1e300 "
+                         "cage diagonals or more) that their coordinates overflow float64")
+    out[far] = rows
+
+
+def affine_extension_weights(points, cage_v, cage_f) -> np.ndarray:
+    """Coordinates that move points by the least-squares affine fit of a cage's motion.
+
+    With ``H = [cage_v, 1]`` (the ``k`` used vertices, homogeneous) the weights of ``p`` are
+    ``H (H^T H)^{-1} [p, 1]``: ``w @ new_cage_v = A p + t`` where ``(A, t)`` minimises
+    ``sum_j |A v_j + t - new_j|^2``. They sum to one and reproduce ``p`` exactly
+    (``w @ cage_v = p``); unlike MVC they are not local and not positive inside. MVC uses
+    them far from the cage, where its own coordinates cannot be resolved (module
+    docstring). Unreferenced cage vertices get zero weight.
+
+    Parameters
+    ----------
+    points : (n, 3) array_like of float
+    cage_v : (k, 3) array_like of float
+        Vertices of a cage that encloses a volume (its used vertices are not coplanar).
+    cage_f : (m, 3) array_like of int
+
+    Returns
+    -------
+    (n, k) float64
+
+    Examples
+    --------
+    >>> from cagekit.shapes import box_cage
+    >>> v, f = box_cage()
+    >>> w = affine_extension_weights([[1e6, 0.0, 0.0]], v, f)
+    >>> (w @ v).round(6).tolist(), round(float(w.sum()), 9)
+    ([[1000000.0, 0.0, 0.0]], 1.0)
+    """
+    cv = np.asarray(cage_v, dtype=np.float64)
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    used = np.unique(np.asarray(cage_f, dtype=np.int64))
+    lo, hi = cv.min(axis=0), cv.max(axis=0)
+    centre, diag = 0.5 * (lo + hi), float(np.linalg.norm(hi - lo))
+    H = np.hstack([(cv[used] - centre) / diag, np.ones((len(used), 1))])      # (u, 4)
+    Ph = np.hstack([(pts - centre) / diag, np.ones((len(pts), 1))])          # (n, 4)
+    out = np.zeros((len(pts), len(cv)))
+    out[:, used] = Ph @ np.linalg.solve(H.T @ H, H.T)
     return out

@@ -1,0 +1,180 @@
+"""Real artist-made models: Debian's ``sweethome3d-furniture`` catalogs.
+
+Debian's package ``sweethome3d-furniture`` (``apt-get install sweethome3d-furniture``) ships
+five furniture libraries of Sweet Home 3D, 820 OBJ models by real artists: furniture,
+characters, animals, plants, vehicles. Each library is a zip archive
+``/usr/share/sweethome3d/furniture/<Catalog>.sh3f`` holding the OBJ files (with their
+materials and textures) and a ``PluginFurnitureCatalog.properties`` (Java properties, ISO
+8859-1) that names each model, its category, its creator and the library's licence:
+Blend Swap CC-0 (public domain), Blend Swap CC-BY, Kator Legaz, Reallusion and Scopia (CC BY
+3.0: credit the creator of any model shown or shipped).
+
+:func:`models` unpacks the archives once into a cache folder and lists the models;
+``benchmarks/bench_assets.py`` and the furniture benchmarks use it. Nothing is downloaded:
+without the package, :func:`models` raises an :class:`~cagekit.errors.InputError` that says
+how to install it.
+
+Examples
+--------
+>>> chairs = [m for m in models() if "chair" in m.name.lower()]  # doctest: +SKIP
+>>> chairs[0].path, chairs[0].creator, chairs[0].license  # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import zipfile
+from dataclasses import dataclass
+
+from cagekit.errors import InputError
+
+__all__ = ["FURNITURE_DIR", "CATALOGS", "FURNITURE_CATALOGS", "Model", "models",
+           "read_properties"]
+
+#: where Debian puts the archives
+FURNITURE_DIR = "/usr/share/sweethome3d/furniture"
+
+#: the package's five catalogs (archive stems)
+CATALOGS = ("BlendSwap-CC-0", "BlendSwap-CC-BY", "KatorLegaz", "Reallusion", "Scopia")
+
+#: the catalogs DESIGN.md names for furniture benchmarks
+FURNITURE_CATALOGS = ("BlendSwap-CC-0", "BlendSwap-CC-BY", "KatorLegaz")
+
+_PROPERTIES = "PluginFurnitureCatalog.properties"
+
+
+@dataclass(frozen=True)
+class Model:
+    """One model of a catalog.
+
+    Attributes
+    ----------
+    path : str
+        The unpacked OBJ file.
+    catalog : str
+        The archive's stem (one of :data:`CATALOGS`).
+    name, category, creator : str
+        As the catalog names them (``creator`` may be empty).
+    license : str
+        The model's licence, else the catalog's.
+    """
+
+    path: str
+    catalog: str
+    name: str
+    category: str
+    creator: str
+    license: str
+
+    @property
+    def credit(self) -> str:
+        """``"<name> by <creator> (<licence>)"``, for captions."""
+        by = f" by {self.creator}" if self.creator else ""
+        return f"{self.name}{by} ({self.license})"
+
+
+def read_properties(text: str) -> dict[str, str]:
+    """Parse Java ``.properties`` text: ``key=value`` (or ``:``), comments, continuations.
+
+    Parameters
+    ----------
+    text : str
+        Already decoded (the catalogs are ISO 8859-1); ``\\uXXXX`` escapes are decoded here.
+
+    Returns
+    -------
+    dict of str to str
+
+    Examples
+    --------
+    >>> read_properties("# c\\nname#1=Chair\\\\\\n  s\\ncategory#1 : Office\\n")
+    {'name#1': 'Chairs', 'category#1': 'Office'}
+    """
+    out = {}
+    lines = iter(text.splitlines())
+    for line in lines:
+        line = line.lstrip()
+        if not line or line[0] in "#!":
+            continue
+        while line.endswith("\\") and not line.endswith("\\\\"):
+            line = line[:-1] + next(lines, "").lstrip()
+        match = re.match(r"((?:\\.|[^=:\s\\])+)\s*[=:]?\s*(.*)$", line)
+        if match:
+            out[_unescape(match.group(1))] = _unescape(match.group(2))
+    return out
+
+
+def _unescape(value: str) -> str:
+    def one(m):
+        code = m.group(1)
+        if code.startswith("u"):
+            return chr(int(code[1:], 16))
+        return {"t": "\t", "n": "\n", "r": "\r", "f": "\f"}.get(code, code)
+
+    return re.sub(r"\\(u[0-9a-fA-F]{4}|.)", one, value)
+
+
+def _unpack(archive: str, folder: str) -> None:
+    """Unpack ``archive`` into ``folder`` once (a marker file records it)."""
+    marker = os.path.join(folder, ".unpacked")
+    if os.path.exists(marker) and os.path.getmtime(marker) >= os.path.getmtime(archive):
+        return
+    os.makedirs(folder, exist_ok=True)
+    with zipfile.ZipFile(archive) as zf:
+        for member in zf.infolist():
+            target = os.path.realpath(os.path.join(folder, member.filename))
+            if not target.startswith(os.path.realpath(folder) + os.sep):
+                raise InputError(f"unsafe path {member.filename!r} in the archive", archive)
+        zf.extractall(folder)
+    with open(marker, "w") as fh:
+        fh.write(archive + "\n")
+
+
+def models(catalogs=CATALOGS, cache: str = "out/sweethome3d",
+           furniture_dir: str = FURNITURE_DIR) -> list[Model]:
+    """The models of the installed catalogs, unpacked into ``cache``.
+
+    Parameters
+    ----------
+    catalogs : sequence of str, default all five
+        Archive stems (:data:`CATALOGS`); :data:`FURNITURE_CATALOGS` for furniture.
+    cache : str, default "out/sweethome3d"
+        Where the archives are unpacked (once; again when an archive is newer).
+    furniture_dir : str
+        Where the ``.sh3f`` archives are.
+
+    Returns
+    -------
+    list of Model
+        In catalog order, then in the order the catalog lists them.
+
+    Raises
+    ------
+    InputError
+        An archive is missing (the package is not installed) or is not a catalog.
+    """
+    out = []
+    for catalog in catalogs:
+        archive = os.path.join(furniture_dir, f"{catalog}.sh3f")
+        if not os.path.isfile(archive):
+            raise InputError("missing: install Debian's sweethome3d-furniture "
+                             "(apt-get install sweethome3d-furniture)", archive)
+        folder = os.path.join(cache, catalog)
+        _unpack(archive, folder)
+        try:
+            with open(os.path.join(folder, _PROPERTIES), encoding="latin-1") as fh:
+                props = read_properties(fh.read())
+        except OSError:
+            raise InputError(f"has no {_PROPERTIES}: not a furniture catalog",
+                             archive) from None
+        licence = props.get("license", "")
+        numbers = sorted(int(k.split("#", 1)[1]) for k in props if k.startswith("model#"))
+        for i in numbers:
+            rel = props[f"model#{i}"].lstrip("/")
+            out.append(Model(path=os.path.join(folder, rel), catalog=catalog,
+                             name=props.get(f"name#{i}", rel),
+                             category=props.get(f"category#{i}", ""),
+                             creator=props.get(f"creator#{i}", ""),
+                             license=props.get(f"license#{i}", licence)))
+    return out
