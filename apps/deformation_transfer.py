@@ -53,6 +53,7 @@ from __future__ import annotations
 
 import json
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -71,8 +72,9 @@ from cagekit.cli import (
     _same_file,
 )
 from cagekit.coords import bind
+from cagekit.coords.binding import warn_outside
 from cagekit.deformation import deform
-from cagekit.errors import InputError
+from cagekit.errors import CagekitWarning, InputError
 from cagekit.geometry import as_vertices, cotangent_laplacian, normalize
 
 __all__ = ["CharacterCage", "fit_character", "corresponds", "check_model",
@@ -500,6 +502,7 @@ def main(template, template_cage, template_landmarks, character, character_landm
     Vt, Ft = io.load_mesh(template)
     cage_v, cage_f = io.load_mesh(template_cage)
     cage_f = check_cage(cage_v, cage_f, name=template_cage)
+    warn_outside(Vt, cage_v, cage_f, shape=template, cage=template_cage)
     marks_t = io.load_landmarks(template_landmarks)
     Vc, Fc = io.load_mesh(character)
     marks_c = io.load_landmarks(character_landmarks)
@@ -517,12 +520,13 @@ def main(template, template_cage, template_landmarks, character, character_landm
     for label_set, where in ((char.match.source_only, template_landmarks),
                              (char.match.target_only, character_landmarks)):
         if label_set:
-            click.echo(f"note: {len(label_set)} landmark(s) only in {where}, not used: "
-                       f"{', '.join(label_set[:8])}{' ...' if len(label_set) > 8 else ''}",
-                       err=True)
+            more = " ..." if len(label_set) > 8 else ""
+            warnings.warn(CagekitWarning(
+                f"{len(label_set)} landmark(s) only in {where}, not used: "
+                f"{', '.join(label_set[:8])}{more}"), stacklevel=1)
     cage_check = check_fitted_cage(char)
     for problem in cage_check["problems"]:
-        click.echo(f"warning: the fitted character cage {problem}", err=True)
+        warnings.warn(CagekitWarning(f"the fitted character cage {problem}"), stacklevel=1)
     fitted = time.perf_counter()
     fitter = classical_fitter(Vt, cage_v, cage_f) if model is None else None
     results = []

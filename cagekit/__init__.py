@@ -38,8 +38,12 @@ _EXPORTS = {
     "template_cage": "cagekit.fitting", "CageFitError": "cagekit.fitting",
     "InputError": "cagekit.errors", "MeshFileError": "cagekit.errors",
     "LandmarkFileError": "cagekit.errors", "CageError": "cagekit.errors",
+    "CagekitWarning": "cagekit.errors", "MeshFileWarning": "cagekit.errors",
+    "OutsideCageWarning": "cagekit.errors",
 }
-_SUBMODULES = ("shapes",)
+#: submodules reachable as attributes (``cagekit.io.load_mesh``) without importing them first
+_SUBMODULES = ("shapes", "cage", "coords", "datasets", "deformation", "errors", "fitting",
+               "geometry", "io", "losses", "metrics", "render")
 
 __all__ = [*_EXPORTS, *_SUBMODULES, "__version__"]
 

@@ -219,7 +219,8 @@ def self_intersecting_faces(cage_v, cage_f) -> np.ndarray:
     """Which faces of a triangle mesh intersect another of its faces (exact test).
 
     Faces that only share a vertex or an edge do not count. Uses pymeshlab's
-    ``compute_selection_by_self_intersections_per_face`` (exact predicates).
+    ``compute_selection_by_self_intersections_per_face`` (exact predicates), on the
+    vertices scaled to unit extent, so that very large or small cages are judged alike.
 
     Parameters
     ----------
@@ -242,6 +243,10 @@ def self_intersecting_faces(cage_v, cage_f) -> np.ndarray:
 
     v = np.ascontiguousarray(cage_v, dtype=np.float64)
     f = np.ascontiguousarray(cage_f, dtype=np.int64)
+    lo = v.min(axis=0)
+    largest = float(np.max(v.max(axis=0) - lo))
+    if largest > 0 and np.isfinite(largest):
+        v = np.ascontiguousarray((v - lo) / largest)
     ms = pymeshlab.MeshSet()
     ms.add_mesh(pymeshlab.Mesh(v, f))
     ms.compute_selection_by_self_intersections_per_face()

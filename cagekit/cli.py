@@ -52,6 +52,7 @@ _BIND_CHUNK = 20_000
 #: neither numba nor libigl (tests check that they match)
 COORDINATE_METHODS = ("mvc",)
 FIT_METHODS = ("wrap", "template")
+TEMPLATE_FACES = 80
 
 
 # ----------------------------------------------------------------------- error handling
@@ -186,6 +187,7 @@ def _sigint_raises(exception):
         return
 
     def handler(signum, frame):
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C while unwinding
         raise exception()
 
     previous = signal.signal(signal.SIGINT, handler)
@@ -642,6 +644,10 @@ def fit_cage(ctx, mesh, out, faces, method, components, preview, up, seed, as_js
     from cagekit.fitting import fit_cage as fit
 
     _start(ctx)
+    if method == "template" and faces < TEMPLATE_FACES:
+        raise click.BadParameter(f"the template cage has {TEMPLATE_FACES} faces, more than "
+                                 f"{faces}: give --faces {TEMPLATE_FACES} or more, or --method "
+                                 "wrap", param_hint="'--faces'")
     _check_output(out, (mesh,), extensions=set(io.SUPPORTED_MESH_EXTENSIONS) - {".gltf"})
     if preview is not None:
         _check_output(preview, (mesh, out), extensions={".png"})
@@ -896,11 +902,15 @@ def deform(ctx, source, target, out, method, cage_path, faces, save_cage, symmet
     Example:
       cagekit deform chair.obj tall_chair.obj -o out.obj --symmetry x --preview out.png
     """
+    import warnings
+
     import numpy as np
 
     from cagekit import io
     from cagekit.cage import check_cage
+    from cagekit.coords.binding import warn_outside
     from cagekit.deformation import deform as run
+    from cagekit.errors import OutsideCageWarning
     from cagekit.geometry import normalize
 
     _start(ctx)
@@ -940,6 +950,7 @@ def deform(ctx, source, target, out, method, cage_path, faces, save_cage, symmet
     if cage_path is not None:
         cage_v, cage_f = io.load_mesh(cage_path)
         cage = (cage_v, check_cage(cage_v, cage_f, name=cage_path))
+        warn_outside(src[0], *cage, shape=source, cage=cage_path)
     frames = {}
     for path, (V, _) in ((source, src), (target, tgt)):
         try:
@@ -971,9 +982,11 @@ def deform(ctx, source, target, out, method, cage_path, faces, save_cage, symmet
                                        refine=refine, **(options if refine else {}))
             method = result.method
         else:
-            # a given cage was checked above, with its file name in the message
-            result = run(src, tgt, cage, method=method, landmarks=pairs, faces=faces,
-                         seed=seed, check=False, **options)
+            # a given cage was checked above, with its file name in the messages
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", OutsideCageWarning)
+                result = run(src, tgt, cage, method=method, landmarks=pairs, faces=faces,
+                             seed=seed, check=False, **options)
     except InputError as exc:
         if exc.path is None:
             low = exc.problem.lower()

@@ -360,10 +360,13 @@ def default_alphas(faces: int) -> tuple[float, ...]:
     """Alpha values tried by the wrap for a face budget: about ``0.9 / sqrt(faces)`` first.
 
     A coarser wrap is enough for a coarser cage and is several times faster to build; the
-    larger values are fall-backs for inputs the first wrap cannot serve (very thin parts).
+    larger values are fall-backs for inputs the first wrap cannot serve: very thin parts,
+    and (0.5) parts so far apart that smaller wraps leave them in separate components
+    (a shower head above its tray; such a cage is loose, ``components`` > 1 gives a tighter
+    one).
     """
     first = float(np.clip(0.9 / np.sqrt(max(faces, 1)), 0.02, 0.1))
-    return (first, 2 * first, 0.2)
+    return (first, 2 * first, 0.2, 0.5)
 
 
 def _fit_wrap(v, f, faces, samples, margin, offsets, alphas, rounds, components):

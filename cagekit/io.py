@@ -282,7 +282,11 @@ def _triangulate(flat, sizes, n_vertices, path, lines=None, base=0) -> np.ndarra
     """
     flat = np.asarray(flat, dtype=np.int64).reshape(-1)
     sizes = np.asarray(sizes, dtype=np.int64)
-    where = (lambda i: f"line {lines[i]}") if lines is not None else (lambda i: f"face {i}")
+    if lines is None:  # name faces by their number in the file, also after dropping some
+        lines = np.arange(len(sizes))
+        where = lambda i: f"face {lines[i]}"  # noqa: E731
+    else:
+        where = lambda i: f"line {lines[i]}"  # noqa: E731
     short = sizes < 3
     if short.any():  # lines or points written as faces: dropped, with one warning
         first = int(np.argmax(short))
@@ -291,8 +295,7 @@ def _triangulate(flat, sizes, n_vertices, path, lines=None, base=0) -> np.ndarra
             f"vertices (the first at {where(first)}); kept {int((~short).sum()):,}"),
             stacklevel=5)
         flat = flat[np.repeat(~short, sizes)]
-        if lines is not None:
-            lines = [line for line, bad in zip(lines, short) if not bad]
+        lines = [line for line, bad in zip(lines, short) if not bad]
         sizes = sizes[~short]
     if len(flat) and (flat.min() < 0 or flat.max() >= n_vertices):
         polygon = np.repeat(np.arange(len(sizes)), sizes)
@@ -710,6 +713,14 @@ def output_folder(path: str | os.PathLike) -> Iterator[str]:
         raise
 
 
+#: folders whose stale temporaries this process has removed (once per folder and process)
+_SWEPT: set[str] = set()
+
+#: temporary names: ``.<name>.tmp-<8 hex><ext>`` (being written, locked) and
+#: ``.<name>.new-<8 hex><ext>`` (just created, about to be locked and renamed)
+_TEMPORARY = re.compile(r"^\..*\.(tmp|new)-[0-9a-f]{8}(\.[^.]*)?$")
+
+
 @contextlib.contextmanager
 def atomic_output(path: str | os.PathLike) -> Iterator[str]:
     """Write a file atomically: yield a temporary path, then rename it to ``path``.
@@ -721,9 +732,12 @@ def atomic_output(path: str | os.PathLike) -> Iterator[str]:
     is removed and ``path`` is left untouched.
 
     A process killed while writing (SIGKILL, a power cut) cannot remove its temporary file.
-    So the temporary file is locked (``flock``) while it is written, and every call first
-    removes the unlocked temporary files of the same destination: what a dead writer left
-    behind. A concurrent writer's file is locked and stays.
+    So the temporary file is locked (``flock``) for as long as it exists under that name (it
+    is created as ``.<name>.new-...``, locked, then renamed, which keeps the lock), and the
+    first write into a folder in a process removes the folder's unlocked temporary files:
+    what dead writers left behind (``.new-`` ones only when older than a minute). A live
+    writer's file is locked and stays. On file systems whose ``flock`` is emulated or absent
+    (some NFS set-ups) nothing is ever taken for stale.
 
     Parameters
     ----------
@@ -751,26 +765,31 @@ def atomic_output(path: str | os.PathLike) -> Iterator[str]:
         raise InputError("is a directory; cannot write a file there", path)
     if not os.path.isdir(folder):
         raise InputError(f"cannot write: folder {folder} does not exist", path)
+    if folder not in _SWEPT:
+        _remove_stale_temporaries(folder)
+        _SWEPT.add(folder)
     root, ext = os.path.splitext(name)
-    _remove_stale_temporaries(folder, root, ext)
     while True:
-        tmp = os.path.join(folder, f".{root}.tmp-{secrets.token_hex(4)}{ext}")
+        token = secrets.token_hex(4)
+        fresh = os.path.join(folder, f".{root}.new-{token}{ext}")
+        tmp = os.path.join(folder, f".{root}.tmp-{token}{ext}")
         try:
-            lock = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
-            break
+            lock = os.open(fresh, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
         except FileExistsError:
             continue
         except OSError as exc:
             raise InputError(f"cannot write: {exc.strerror or exc}", path) from None
+        if os.path.lexists(tmp):  # a name clash: try another token
+            os.close(lock)
+            os.remove(fresh)
+            continue
+        break
     try:
         _lock(lock, blocking=True)
+        os.rename(fresh, tmp)  # the same inode, still locked: never unlocked under .tmp-
         try:
             yield tmp
-            fd = os.open(tmp, os.O_RDONLY)
-            try:
-                os.fsync(fd)
-            finally:
-                os.close(fd)
+            _fsync_written(tmp, lock)
             with contextlib.suppress(OSError):
                 os.chmod(tmp, stat.S_IMODE(os.stat(target).st_mode))
             os.replace(tmp, target)
@@ -779,6 +798,8 @@ def atomic_output(path: str | os.PathLike) -> Iterator[str]:
                 os.remove(tmp)
             raise
     finally:
+        with contextlib.suppress(OSError):
+            os.remove(fresh)  # only there if the rename failed
         os.close(lock)
     with contextlib.suppress(OSError):  # make the rename itself durable (POSIX)
         fd = os.open(folder, os.O_RDONLY)
@@ -788,11 +809,24 @@ def atomic_output(path: str | os.PathLike) -> Iterator[str]:
             os.close(fd)
 
 
+def _fsync_written(tmp: str, lock: int) -> None:
+    """fsync what was written to ``tmp``: through the lock's descriptor when it is still
+    the same file (opening and closing another descriptor would drop an emulated lock)."""
+    if os.fstat(lock).st_ino == os.stat(tmp).st_ino:
+        os.fsync(lock)
+        return
+    fd = os.open(tmp, os.O_RDONLY)  # the writer replaced the file
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
 def _lock(fd: int, blocking: bool) -> bool:
     """An exclusive ``flock`` on ``fd``; False if another process holds one (non-blocking).
 
-    Where ``fcntl`` is missing (not POSIX) nothing is locked and False is returned, so
-    that no temporary file is ever taken for stale there.
+    Where ``fcntl`` is missing (not POSIX) or the file system has no locks, nothing is
+    locked and False is returned, so that no temporary file is ever taken for stale there.
     """
     try:
         import fcntl
@@ -800,28 +834,37 @@ def _lock(fd: int, blocking: bool) -> bool:
         return False
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | (0 if blocking else fcntl.LOCK_NB))
-    except BlockingIOError:
-        return False
-    except OSError:  # a file system without locks: never call a file stale
+    except OSError:  # held by another process, or no locks on this file system
         return False
     return True
 
 
-def _remove_stale_temporaries(folder: str, root: str, ext: str) -> None:
-    """Remove the unlocked temporary files of ``<root><ext>`` in ``folder`` (dead writers')."""
-    pattern = re.compile(re.escape(f".{root}.tmp-") + "[0-9a-f]{8}" + re.escape(ext) + "$")
+def _remove_stale_temporaries(folder: str) -> None:
+    """Remove the unlocked temporary files in ``folder`` (what dead writers left)."""
+    import time
+
     try:
-        names = [n for n in os.listdir(folder) if pattern.match(n)]
+        names = [n for n in os.listdir(folder) if n.startswith(".") and _TEMPORARY.match(n)]
     except OSError:
         return
     for stale in names:
         candidate = os.path.join(folder, stale)
         try:
-            fd = os.open(candidate, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
-        except OSError:  # gone already, a link, or not ours to open
+            info = os.lstat(candidate)
+        except OSError:
+            continue
+        if not stat.S_ISREG(info.st_mode):  # a link, a FIFO, a folder: not ours
+            continue
+        if ".new-" in stale and time.time() - info.st_mtime < 60:
+            continue  # being created right now, about to be locked
+        try:
+            fd = os.open(candidate, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOFOLLOW", 0))
+        except OSError:
             continue
         try:
-            if stat.S_ISREG(os.fstat(fd).st_mode) and _lock(fd, blocking=False):
+            opened = os.fstat(fd)
+            same = (opened.st_ino, opened.st_dev) == (info.st_ino, info.st_dev)
+            if same and stat.S_ISREG(opened.st_mode) and _lock(fd, blocking=False):
                 with contextlib.suppress(OSError):
                     os.remove(candidate)
         finally:

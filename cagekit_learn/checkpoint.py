@@ -7,21 +7,21 @@ A checkpoint is one ``torch.save`` file holding only tensors and plain Python va
 
 It is read with ``torch.load(..., weights_only=True)``, PyTorch's restricted unpickler,
 which rebuilds tensors and containers and refuses anything else, so a malicious file
-cannot execute code. It is written to a temporary file in the same folder, flushed,
-and renamed over the old one, so a run killed while saving leaves the previous
-checkpoint whole.
+cannot execute code. It is written with :func:`cagekit.io.atomic_output` (a temporary file
+in the same folder, fsynced, renamed over the old one), so a run killed while saving leaves
+the previous checkpoint whole, and the next save removes what the killed one left.
 """
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import torch
 
 from cagekit.errors import InputError
 
-__all__ = ["FORMAT", "CHECKPOINT_NAME", "save_checkpoint", "load_checkpoint", "resolve"]
+__all__ = ["FORMAT", "CHECKPOINT_NAME", "save_checkpoint", "load_checkpoint", "resolve",
+           "nonfinite_tensors"]
 
 FORMAT = 1
 CHECKPOINT_NAME = "checkpoint.pt"
@@ -42,17 +42,17 @@ def save_checkpoint(path, payload: dict) -> None:
     payload : dict
         Tensors and plain Python values only.
     """
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        with open(tmp, "wb") as handle:
-            torch.save({"format": FORMAT, **payload}, handle)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    from cagekit.io import atomic_output
+
+    with atomic_output(path) as tmp, open(tmp, "wb") as handle:
+        torch.save({"format": FORMAT, **payload}, handle)
+
+
+def nonfinite_tensors(state_dict: dict) -> list[str]:
+    """Names of the floating-point tensors of a state dict that hold NaN or inf."""
+    return [name for name, t in state_dict.items()
+            if isinstance(t, torch.Tensor) and t.is_floating_point()
+            and not bool(torch.isfinite(t).all())]
 
 
 def load_checkpoint(path, map_location="cpu") -> dict:

@@ -533,26 +533,39 @@ def _weights_and_faces(points, cage_v, cage_f, snap, chunk_size):
 
 def _blend_far_rows(Pc, Vc, faces_np, out):
     """The core's far-point rule: beyond ``FAR_BLEND[0]`` cage diagonals from the cage's
-    centre, MVC is blended into the affine extension (:mod:`cagekit.coords.mvc`)."""
+    centre, MVC is blended into the affine extension (:mod:`cagekit.coords.mvc`).
+
+    Only the far rows are gathered, blended and put back, so memory stays that of the
+    output and no other row's gradient passes through the blend. The pseudo-inverse is
+    taken in float64 (then cast), which keeps float32 cages accurate.
+    """
     lo, hi = FAR_BLEND
     with torch.no_grad():
-        D = torch.linalg.vector_norm(Vc.amax(1) - Vc.amin(1), dim=-1).view(-1, 1, 1)
-        q = Pc.detach() / D
+        D = torch.linalg.vector_norm(Vc.amax(1) - Vc.amin(1), dim=-1)          # (B,)
+        q = Pc.detach() / D.view(-1, 1, 1)
         far = ~(torch.hypot(torch.hypot(q[..., 0], q[..., 1]), q[..., 2]) <= lo)  # (B, n)
     if not bool(far.any()):
         return out
-    # centre and diagonal are constants: the affine extension does not depend on them
-    q = Pc / D
-    r = torch.hypot(torch.hypot(q[..., 0], q[..., 1]), q[..., 2])
+    bi, ni = torch.nonzero(far, as_tuple=True)
+    # the distance in diagonals as a function of the cage too (its box's centre and
+    # diagonal), so that the blend factor's gradient reaches the cage
+    top, bottom = Vc.amax(1), Vc.amin(1)
+    D = torch.linalg.vector_norm(top - bottom, dim=-1)                      # (B,)
+    C = 0.5 * (top + bottom)                                                # (B, 3), ~0
+    qf = (Pc[bi, ni] - C[bi]) / D[bi].unsqueeze(-1)                         # (f, 3)
+    r = torch.hypot(torch.hypot(qf[:, 0], qf[:, 1]), qf[:, 2])
     t = ((r - lo) / (hi - lo)).clamp(0.0, 1.0)
-    s = (t * t * (3.0 - 2.0 * t)).unsqueeze(-1)                            # (B, n, 1)
+    s = (t * t * (3.0 - 2.0 * t)).unsqueeze(-1)                              # (f, 1)
     used = torch.as_tensor(np.unique(faces_np), device=Pc.device)
-    H = torch.cat([Vc[:, used] / D, torch.ones_like(Vc[:, used, :1])], -1)  # (B, u, 4)
-    Ph = torch.cat([q, torch.ones_like(q[..., :1])], -1)                   # (B, n, 4)
-    affine = out.new_zeros(out.shape)
-    affine[:, :, used] = Ph @ torch.linalg.solve(H.transpose(1, 2) @ H, H.transpose(1, 2))
-    blended = torch.where(s == 1.0, affine, (1.0 - s) * out + s * affine)
-    return torch.where(far.unsqueeze(-1), blended, out)
+    Vu = (Vc[:, used].double() - C.double().unsqueeze(1)) / D.double().view(-1, 1, 1)
+    H = torch.cat([Vu, torch.ones_like(Vu[..., :1])], -1)                   # (B, u, 4)
+    M = torch.linalg.pinv(H).to(out.dtype)                                  # (B, 4, u)
+    Ph = torch.cat([qf, torch.ones_like(qf[:, :1])], -1)                    # (f, 4)
+    affine_used = (Ph.unsqueeze(1) @ M[bi]).squeeze(1)                     # (f, u)
+    rows = out[bi, ni]                                                      # (f, k)
+    affine = torch.zeros_like(rows).index_copy(1, used, affine_used)
+    blended = torch.where(s == 1.0, affine, (1.0 - s) * rows + s * affine)
+    return out.index_put((bi, ni), blended)
 
 
 def deform(weights, new_cage_v) -> torch.Tensor:

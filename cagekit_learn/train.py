@@ -60,7 +60,13 @@ import torch
 
 from cagekit.errors import InputError
 from cagekit_learn import losses
-from cagekit_learn.checkpoint import CHECKPOINT_NAME, load_checkpoint, resolve, save_checkpoint
+from cagekit_learn.checkpoint import (
+    CHECKPOINT_NAME,
+    load_checkpoint,
+    nonfinite_tensors,
+    resolve,
+    save_checkpoint,
+)
 from cagekit_learn.coords import mean_value_coordinates
 from cagekit_learn.data import (
     FixedSource,
@@ -498,6 +504,14 @@ def _usable(path):
                          f"{first})", str(path)) from None
 
 
+def _refuse_nonfinite(state_dict, path) -> None:
+    bad = nonfinite_tensors(state_dict)
+    if bad:
+        raise InputError(f"{len(bad)} of the model's weight tensors hold NaN or inf (first: "
+                         f"{bad[0]}): the training diverged or the file is damaged",
+                         str(resolve(path)))
+
+
 def load_model(path, map_location="cpu") -> tuple[NeuralCages, dict]:
     """A trained model (in eval mode) and its checkpoint from a file or run folder.
 
@@ -509,12 +523,7 @@ def load_model(path, map_location="cpu") -> tuple[NeuralCages, dict]:
     with _usable(path):
         model = NeuralCages(ModelConfig.from_dict(payload["model_config"]))
         model.load_state_dict(payload["model"])
-    bad = [name for name, t in model.state_dict().items()
-           if t.is_floating_point() and not bool(torch.isfinite(t).all())]
-    if bad:
-        raise InputError(f"{len(bad)} of the model's weight tensors hold NaN or inf (first: "
-                         f"{bad[0]}): the training diverged or the file is damaged",
-                         str(resolve(path)))
+    _refuse_nonfinite(model.state_dict(), path)
     model.eval()
     return model, payload
 
@@ -572,6 +581,8 @@ def train(config: TrainConfig, resume: bool = False, progress: bool = True,
         payload = load_checkpoint(run_dir / CHECKPOINT_NAME)
         with _usable(run_dir / CHECKPOINT_NAME):
             stored = TrainConfig.from_dict(payload["config"])
+            weights = payload["model"]
+        _refuse_nonfinite(weights, run_dir)
         for name in ("epochs", "max_steps", "max_minutes", "device"):
             if getattr(config, name) is not None:  # None: keep the stopped run's own
                 setattr(stored, name, getattr(config, name))

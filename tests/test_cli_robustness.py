@@ -74,7 +74,8 @@ def test_deform_with_a_cage_that_does_not_enclose_the_source_warns_with_the_shar
     assert result.returncode == 0, result.stderr
     warning = [line for line in stderr_lines(result) if "warning" in line]
     assert len(warning) == 1, result.stderr
-    assert "% of the source" in warning[0] and "outside the given cage" in warning[0]
+    # the share outside, naming both files (as apply does)
+    assert f"48% of {SHAPE}" in warning[0] and f"outside {small}" in warning[0]
     assert out.exists()
 
 
@@ -164,17 +165,22 @@ def test_library_warnings_are_one_line_each(tmp_path):
         "(the first at line 9); kept 4"]
 
 
-def test_a_foreign_warning_is_one_line_too():
-    """Another library's warning (a multi-line UserWarning with its source line, say) is
-    one line of ours, naming where it came from."""
-    code = ("import warnings, click\n"
+def run_command_doing(statement):
+    """Run a one-statement command built with cagekit's Command class, as ``demo``."""
+    code = ("import ctypes, warnings, click\n"
             "from cagekit.cli import Command\n"
             "@click.command(cls=Command)\n"
             "def cmd():\n"
-            "    warnings.warn('first line\\nsecond line', UserWarning)\n"
+            f"    {statement}\n"
             "cmd(prog_name='demo')\n")
-    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                            env={**os.environ, "PYTHONPATH": ROOT})
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          env={**os.environ, "PYTHONPATH": ROOT})
+
+
+def test_a_foreign_warning_is_one_line_too():
+    """Another library's warning (a multi-line UserWarning with its source line, say) is
+    one line of ours, naming where it came from."""
+    result = run_command_doing("warnings.warn('first line\\nsecond line', UserWarning)")
     assert result.returncode == 0, result.stderr
     assert result.stderr.strip().splitlines() == [
         "demo: warning: first line second line (<string> UserWarning)"]
@@ -200,14 +206,7 @@ def test_sigint_prints_one_line_and_leaves_no_partial_output(tmp_path):
 
 def test_a_native_crash_is_reported_not_silent():
     """A segmentation fault in compiled code prints the Python call it happened in."""
-    code = ("import ctypes, click\n"
-            "from cagekit.cli import Command\n"
-            "@click.command(cls=Command)\n"
-            "def cmd():\n"
-            "    ctypes.string_at(0)\n"
-            "cmd(prog_name='demo')\n")
-    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                            env={**os.environ, "PYTHONPATH": ROOT})
+    result = run_command_doing("ctypes.string_at(0)")
     assert result.returncode == -signal.SIGSEGV
     assert "Segmentation fault" in result.stderr and "in cmd" in result.stderr
 

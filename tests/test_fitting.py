@@ -207,3 +207,12 @@ def test_report_refuses_an_empty_cage():
     v, f = torus()
     with pytest.raises(InputError, match="at least 4"):
         cage_report(v, f, np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64))
+
+
+def test_template_below_its_face_count_is_refused():
+    from cagekit.errors import InputError
+    from cagekit.shapes import box_cage
+
+    v, f = box_cage(2)
+    with pytest.raises(InputError, match="80 faces"):
+        fit_cage(v, f, faces=79, method="template")

@@ -537,9 +537,19 @@ def test_atomic_output_replaces_on_success_only(tmp_path):
     assert (tmp_path / "fresh.png").read_bytes() == b"\x89PNG"
 
 
-def test_a_killed_writers_temporary_is_removed_by_the_next_write(tmp_path):
-    """SIGKILL leaves a hidden temporary behind; the next write of the same output removes
-    it, while a live writer's temporary (locked) is left alone."""
+def _save_in_a_new_process(target, timeout=60):
+    """``save_mesh(target)`` in another process: the "next run" of a command."""
+    import subprocess
+    import sys
+
+    code = ("import sys\nfrom cagekit.io import save_mesh\n"
+            "save_mesh(sys.argv[1], [[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])\n")
+    subprocess.run([sys.executable, "-c", code, str(target)], check=True, timeout=timeout)
+
+
+def test_a_killed_writers_temporary_is_removed_by_the_next_run(tmp_path):
+    """SIGKILL leaves a hidden temporary behind; the next run writing into the folder
+    removes it, while a live writer's temporary (locked) is left alone."""
     import signal
     import subprocess
     import sys
@@ -556,15 +566,21 @@ def test_a_killed_writers_temporary_is_removed_by_the_next_write(tmp_path):
     try:
         assert writer.stdout.readline().strip() == "writing"
         (temporary,) = [n for n in os.listdir(tmp_path) if n.startswith(".big.tmp-")]
-        cio.save_mesh(target, TET_V, TET_F)  # the writer is alive: its file stays
+        _save_in_a_new_process(target)  # the writer is alive: its file stays
         assert temporary in os.listdir(tmp_path)
     finally:
         writer.send_signal(signal.SIGKILL)
         writer.wait()
     assert temporary in os.listdir(tmp_path)  # what SIGKILL leaves
-    (tmp_path / ".other.tmp-0123abcd.obj").write_text("another output's")
-    cio.save_mesh(target, TET_V, TET_F)
-    assert sorted(os.listdir(tmp_path)) == [".other.tmp-0123abcd.obj", "big.obj"]
+    (tmp_path / "notes.txt").write_text("not a temporary")
+    _save_in_a_new_process(target)
+    assert sorted(os.listdir(tmp_path)) == ["big.obj", "notes.txt"]
+
+
+def test_a_fifo_named_like_a_temporary_does_not_block_writes(tmp_path):
+    os.mkfifo(tmp_path / ".a.tmp-0123abcd.obj")
+    _save_in_a_new_process(tmp_path / "a.obj", timeout=30)  # no hang
+    assert sorted(os.listdir(tmp_path)) == [".a.tmp-0123abcd.obj", "a.obj"]
 
 
 def test_output_folder_removes_the_folders_it_made_when_the_block_fails(tmp_path):

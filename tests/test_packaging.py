@@ -29,11 +29,13 @@ def test_the_command_line_starts_without_the_heavy_libraries():
 
 def test_the_command_lines_choices_are_the_librarys():
     import cagekit
-    from cagekit.cli import COORDINATE_METHODS, FIT_METHODS
+    from cagekit.cli import COORDINATE_METHODS, FIT_METHODS, TEMPLATE_FACES
     from cagekit.coords.binding import METHODS
     from cagekit.fitting import METHODS as FITTING
+    from cagekit.fitting import TEMPLATE_FACES as FITTING_TEMPLATE_FACES
 
     assert COORDINATE_METHODS == METHODS and FIT_METHODS == FITTING
+    assert TEMPLATE_FACES == FITTING_TEMPLATE_FACES
     assert sorted(dir(cagekit)) == sorted(cagekit.__all__)
     for name in cagekit.__all__:  # every lazily exported name resolves
         assert getattr(cagekit, name) is not None

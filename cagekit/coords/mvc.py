@@ -60,9 +60,11 @@ So far points get other coordinates (:data:`FAR_BLEND`): from ``10 D`` to ``20 D
 centre of the cage's bounding box the MVC row is blended (smoothstep in ``R``) into the
 *affine extension* of the cage (:func:`affine_extension_weights`), and beyond ``20 D`` the
 affine extension alone is used. Its coordinates satisfy partition of unity and linear
-precision exactly (to rounding relative to ``R``), and so does any blend of the two: the
-rest cage maps every point to itself at any distance, and a moved cage moves far points by
-the least-squares affine fit of the cage vertices' motion. Only within ``10 D`` are the
+precision exactly in exact arithmetic, and so does any blend of the two: the rest cage maps
+every point to itself at any distance, to rounding relative to ``R`` (a point at ``1e20``
+keeps about 16 digits of its distance, not of a coordinate of size 1 beside it: no
+coordinates of size ``R`` can do better), and a moved cage moves far points by the
+least-squares affine fit of the cage vertices' motion. Only within ``10 D`` are the
 coordinates MVC's; a point so far that its coordinates overflow float64 (about ``1e300
 D``) is refused with an :class:`~cagekit.errors.InputError`. If a weight sum nearer in
 cannot be resolved at all (``|sum w| <= 1e-15 sum |w|``, not seen in practice), the point
@@ -92,7 +94,8 @@ from cagekit.cage import cage_topology, distance_in_diagonals
 from cagekit.coords.fastangle import half_angle_over_sin
 from cagekit.geometry import bounding_box_diagonal
 
-__all__ = ["mean_value_coordinates", "affine_extension_weights", "DEFAULT_SNAP", "FAR_BLEND"]
+__all__ = ["mean_value_coordinates", "affine_extension_weights", "affine_extension_matrix",
+           "DEFAULT_SNAP", "FAR_BLEND"]
 
 DEFAULT_SNAP = 1e-13
 
@@ -462,6 +465,10 @@ def mean_value_coordinates(points, cage_v, cage_f, snap: float = DEFAULT_SNAP, o
     return out
 
 
+#: far rows blended at a time: the blend's scratch memory stays a few (chunk, k) arrays
+_FAR_CHUNK = 4096
+
+
 def _blend_far_rows(px, cv, faces, out):
     """Rows of points beyond ``FAR_BLEND[0]`` diagonals: blend into the affine extension."""
     from cagekit.errors import InputError
@@ -471,26 +478,50 @@ def _blend_far_rows(px, cv, faces, out):
     if not len(far):
         return
     lo, hi = FAR_BLEND
-    t = np.clip((r[far] - lo) / (hi - lo), 0.0, 1.0)
-    s = (t * t * (3.0 - 2.0 * t))[:, None]
-    with np.errstate(over="ignore", invalid="ignore"):
-        affine = affine_extension_weights(px[far], cv, faces)
-        rows = np.where(s == 1.0, affine, (1.0 - s) * out[far] + s * affine)
-    bad = ~np.isfinite(rows).all(axis=1)
-    if bad.any():
-        raise InputError(f"{int(bad.sum())} points lie so far from the cage (about 1e300 "
-                         "cage diagonals or more) that their coordinates overflow float64")
-    out[far] = rows
+    centre, diag, M = affine_extension_matrix(cv, faces)
+    for start in range(0, len(far), _FAR_CHUNK):
+        rows = far[start:start + _FAR_CHUNK]
+        t = np.clip((r[rows] - lo) / (hi - lo), 0.0, 1.0)
+        s = (t * t * (3.0 - 2.0 * t))[:, None]
+        with np.errstate(over="ignore", invalid="ignore"):
+            affine = _homogeneous((px[rows] - centre) / diag) @ M
+            block = np.where(s == 1.0, affine, (1.0 - s) * out[rows] + s * affine)
+        if not np.isfinite(block).all():
+            raise InputError(f"{int((~np.isfinite(block).all(axis=1)).sum())} points lie so "
+                             "far from the cage (about 1e300 cage diagonals or more) that "
+                             "their coordinates overflow float64")
+        out[rows] = block
+
+
+def _homogeneous(q):
+    return np.hstack([q, np.ones((len(q), 1))])
+
+
+def affine_extension_matrix(cage_v, cage_f):
+    """The ``(4, k)`` matrix of the affine extension of a cage, in its normalised frame.
+
+    Returns ``(centre, diag, M)``: the weights of a point ``p`` are ``[(p - centre) / diag,
+    1] @ M``, with ``M = pinv(H)`` on the columns of the used vertices (``H = [(v_j - centre)
+    / diag, 1]``, one row a used vertex; the pseudo-inverse, by SVD, does not square the
+    condition number as the normal equations would), zero on unreferenced ones.
+    """
+    cv = np.asarray(cage_v, dtype=np.float64)
+    used = np.unique(np.asarray(cage_f, dtype=np.int64))
+    lo, hi = cv.min(axis=0), cv.max(axis=0)
+    centre, diag = 0.5 * (lo + hi), bounding_box_diagonal(hi - lo)
+    M = np.zeros((4, len(cv)))
+    M[:, used] = np.linalg.pinv(_homogeneous((cv[used] - centre) / diag))
+    return centre, diag, M
 
 
 def affine_extension_weights(points, cage_v, cage_f) -> np.ndarray:
     """Coordinates that move points by the least-squares affine fit of a cage's motion.
 
-    With ``H = [cage_v, 1]`` (the ``k`` used vertices, homogeneous) the weights of ``p`` are
-    ``H (H^T H)^{-1} [p, 1]``: ``w @ new_cage_v = A p + t`` where ``(A, t)`` minimises
-    ``sum_j |A v_j + t - new_j|^2``. They sum to one and reproduce ``p`` exactly
-    (``w @ cage_v = p``); unlike MVC they are not local and not positive inside. MVC uses
-    them far from the cage, where its own coordinates cannot be resolved (module
+    With ``H = [cage_v, 1]`` (the used vertices, homogeneous) the weights of ``p`` are
+    ``pinv(H)^T [p, 1]``: ``w @ new_cage_v = A p + t`` where ``(A, t)`` minimises
+    ``sum_j |A v_j + t - new_j|^2``. They sum to one and reproduce ``p`` (``w @ cage_v = p``)
+    to rounding relative to ``|p|``; unlike MVC they are not local and not positive inside.
+    MVC uses them far from the cage, where its own coordinates cannot be resolved (module
     docstring). Unreferenced cage vertices get zero weight.
 
     Parameters
@@ -512,13 +543,6 @@ def affine_extension_weights(points, cage_v, cage_f) -> np.ndarray:
     >>> (w @ v).round(6).tolist(), round(float(w.sum()), 9)
     ([[1000000.0, 0.0, 0.0]], 1.0)
     """
-    cv = np.asarray(cage_v, dtype=np.float64)
+    centre, diag, M = affine_extension_matrix(cage_v, cage_f)
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    used = np.unique(np.asarray(cage_f, dtype=np.int64))
-    lo, hi = cv.min(axis=0), cv.max(axis=0)
-    centre, diag = 0.5 * (lo + hi), float(np.linalg.norm(hi - lo))
-    H = np.hstack([(cv[used] - centre) / diag, np.ones((len(used), 1))])      # (u, 4)
-    Ph = np.hstack([(pts - centre) / diag, np.ones((len(pts), 1))])          # (n, 4)
-    out = np.zeros((len(pts), len(cv)))
-    out[:, used] = Ph @ np.linalg.solve(H.T @ H, H.T)
-    return out
+    return _homogeneous((pts - centre) / diag) @ M
