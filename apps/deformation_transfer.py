@@ -75,7 +75,8 @@ from cagekit.coords import bind
 from cagekit.coords.binding import warn_outside
 from cagekit.deformation import deform
 from cagekit.errors import CagekitWarning, InputError
-from cagekit.geometry import as_vertices, cotangent_laplacian, normalize
+from cagekit.frame import normalize
+from cagekit.geometry import as_vertices, cotangent_laplacian
 
 __all__ = ["CharacterCage", "fit_character", "corresponds", "check_model",
            "check_fitted_cage", "template_cage_classical", "classical_fitter",

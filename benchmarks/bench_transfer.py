@@ -41,7 +41,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from apps import deformation_transfer as dt  # noqa: E402
 from apps import humanoid_data  # noqa: E402
 from cagekit import io  # noqa: E402
-from cagekit.geometry import normalize  # noqa: E402
+from cagekit.frame import normalize
 from cagekit.metrics import dcotlap  # noqa: E402
 from cagekit_learn.train import load_model  # noqa: E402
 

@@ -28,8 +28,9 @@ _EXPORTS = {
     "mean_value_coordinates": "cagekit.coords",
     "cage_encloses": "cagekit.cage", "check_cage": "cagekit.cage",
     "winding_numbers": "cagekit.cage",
-    "cotangent_laplacian": "cagekit.geometry", "normalize": "cagekit.geometry",
-    "denormalize": "cagekit.geometry", "sample_surface": "cagekit.geometry",
+    "cotangent_laplacian": "cagekit.geometry", "normalize": "cagekit.frame",
+    "denormalize": "cagekit.frame", "Frame": "cagekit.frame",
+    "sample_surface": "cagekit.geometry",
     "pca_normals": "cagekit.geometry", "point_to_plane": "cagekit.geometry",
     "chamfer": "cagekit.metrics", "chamfer_distance": "cagekit.metrics",
     "dcotlap": "cagekit.metrics", "evaluate": "cagekit.metrics",
@@ -43,7 +44,7 @@ _EXPORTS = {
 }
 #: submodules reachable as attributes (``cagekit.io.load_mesh``) without importing them first
 _SUBMODULES = ("shapes", "cage", "coords", "datasets", "deformation", "errors", "fitting",
-               "geometry", "io", "losses", "metrics", "render")
+               "frame", "geometry", "io", "losses", "metrics", "render")
 
 __all__ = [*_EXPORTS, *_SUBMODULES, "__version__"]
 

@@ -27,8 +27,9 @@ import numpy as np
 
 from cagekit.errors import CageError
 
-__all__ = ["CageTopology", "cage_topology", "check_cage", "self_intersecting_faces",
-           "signed_volume", "cage_encloses", "winding_numbers", "distance_in_diagonals"]
+__all__ = ["CageTopology", "cage_topology", "unique_edges", "face_components", "check_cage",
+           "self_intersecting_faces", "signed_volume", "cage_encloses", "winding_numbers",
+           "distance_in_diagonals"]
 
 
 @dataclass(frozen=True)
@@ -82,6 +83,30 @@ def cage_topology(cage_f: np.ndarray) -> CageTopology:
     )
 
 
+def unique_edges(faces) -> np.ndarray:
+    """Undirected edges of a triangle mesh, each once: ``cage_topology(faces).edges``.
+
+    Parameters
+    ----------
+    faces : (m, 3) array_like of int
+        May be empty.
+
+    Returns
+    -------
+    (e, 2) int64
+        Sorted pairs ``(i, j)`` with ``i < j``, in lexicographic order.
+
+    Examples
+    --------
+    >>> unique_edges(np.array([[0, 1, 2], [0, 2, 3]])).tolist()
+    [[0, 1], [0, 2], [0, 3], [1, 2], [2, 3]]
+    """
+    faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    if not len(faces):
+        return np.zeros((0, 2), dtype=np.int64)
+    return cage_topology(faces).edges
+
+
 def signed_volume(cage_v: np.ndarray, cage_f: np.ndarray) -> float:
     """Signed volume enclosed by a closed triangle mesh (positive for outward normals).
 
@@ -101,8 +126,23 @@ def signed_volume(cage_v: np.ndarray, cage_f: np.ndarray) -> float:
     return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
 
 
-def _components(n_vertices: int, faces: np.ndarray) -> np.ndarray:
-    """Connected-component label of each face (faces sharing a vertex are connected)."""
+def face_components(n_vertices: int, faces: np.ndarray) -> np.ndarray:
+    """Connected-component label of each face (faces sharing a vertex are connected).
+
+    Parameters
+    ----------
+    n_vertices : int
+    faces : (m, 3) int64
+
+    Returns
+    -------
+    (m,) int labels, ``0 .. components - 1``
+
+    Examples
+    --------
+    >>> face_components(6, np.array([[0, 1, 2], [3, 4, 5], [0, 2, 1]])).tolist()
+    [0, 1, 0]
+    """
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
@@ -196,7 +236,7 @@ def check_cage(cage_v, cage_f, name: str | None = None, *,
         a, b = topo.edges[np.argmax(signed_uses != 0)]
         raise CageError(f"cage faces are not consistently oriented (edge ({a}, {b}))", name)
 
-    labels = _components(len(v), f)
+    labels = face_components(len(v), f)
     out = f.copy()
     for label in np.unique(labels):
         sel = labels == label

@@ -782,7 +782,7 @@ def _parse_weights(ctx, param, values):
 
 def _deform_figures(source, target, result):
     """CD and dCotLap of a result (dCotLap only for a source with faces)."""
-    from cagekit.geometry import normalize
+    from cagekit.frame import normalize
     from cagekit.metrics import chamfer, evaluate
 
     if len(source[1]):
@@ -911,7 +911,7 @@ def deform(ctx, source, target, out, method, cage_path, faces, save_cage, symmet
     from cagekit.coords.binding import warn_outside
     from cagekit.deformation import deform as run
     from cagekit.errors import OutsideCageWarning
-    from cagekit.geometry import normalize
+    from cagekit.frame import normalize
 
     _start(ctx)
     inputs = (source, target, cage_path, model_path, *(landmarks or ()))

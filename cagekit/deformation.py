@@ -90,15 +90,14 @@ from cagekit.cage import check_cage
 from cagekit.coords import bind
 from cagekit.coords.binding import warn_outside
 from cagekit.errors import InputError
+from cagekit.frame import normalize
 from cagekit.geometry import (
-    as_faces,
+    as_shape,
     as_vertices,
     cotangent_laplacian,
-    normalize,
-    unpack_shape,
     vertex_neighborhoods,
 )
-from cagekit.metrics import surface_samples
+from cagekit.sampling import subset, surface_samples
 
 __all__ = ["DeformResult", "DEFAULT_WEIGHTS", "METHODS", "deform", "box_scale"]
 
@@ -164,20 +163,6 @@ class DeformResult:
 
 
 # ------------------------------------------------------------------------------ inputs
-
-
-def _as_pair(shape, name):
-    """Validated ``(V, F)`` of a shape in any form :func:`unpack_shape` accepts."""
-    V, F = unpack_shape(shape)
-    V = as_vertices(V, f"{name} vertices")
-    return V, as_faces(F, len(V), f"{name} faces")
-
-
-def _subset(n, limit, rng):
-    """Sorted seeded subset of ``range(n)`` of size ``min(n, limit)``."""
-    if n <= limit:
-        return np.arange(n)
-    return np.sort(rng.choice(n, size=limit, replace=False))
 
 
 def box_scale(Vs_n, Vt_n) -> np.ndarray:
@@ -382,7 +367,7 @@ def _landmarks(landmarks, cs, ss, ct, st):
 def _shape_rows(Vs_n, Fs, shape_points, rng):
     """Rows (own vertex, neighbourhood) of the shape terms, compacted to the points used."""
     nb = vertex_neighborhoods(Vs_n, Fs, k=16)
-    rows = _subset(len(Vs_n), shape_points, rng)
+    rows = subset(len(Vs_n), shape_points, rng)
     index, mask = nb.index[rows], nb.mask[rows]
     used, inverse = np.unique(np.concatenate([rows, index.ravel()]), return_inverse=True)
     own = inverse[: len(rows)]
@@ -544,8 +529,8 @@ def deform(source, target, cage=None, *, method: str = "cage", symmetry: str | N
                         ("max_evaluations", max_evaluations)):
         if int(value) < 1:
             raise InputError(f"{name} must be at least 1, got {value}")
-    Vs, Fs = _as_pair(source, "source")
-    Vt, Ft = _as_pair(target, "target")
+    Vs, Fs = as_shape(source, name="source")
+    Vt, Ft = as_shape(target, name="target")
     Vs_n, cs, ss = normalize(Vs)
     Vt_n, ct, st = normalize(Vt)
 

@@ -50,7 +50,7 @@ import numpy as np
 
 from cagekit.cage import self_intersecting_faces
 from cagekit.errors import InputError
-from cagekit.geometry import unpack_shape
+from cagekit.geometry import as_shape
 
 __all__ = ["fit_cage", "cage_report", "template_cage", "wrap_input", "CageFitError", "METHODS"]
 
@@ -87,28 +87,17 @@ def template_cage():
 
 
 def _as_shape(shape_v, shape_f):
-    if hasattr(shape_v, "vertices") and shape_f is not None:
-        raise InputError("give either a mesh object or vertices and faces, not both")
-    if shape_f is None:  # a mesh object, a (vertices, faces) pair or bare vertices
-        shape_v, shape_f = unpack_shape(shape_v)
-    v = np.asarray(shape_v, dtype=np.float64)
-    if v.ndim != 2 or v.shape[1] != 3:
-        raise InputError(f"shape vertices must be an (n, 3) array, got {v.shape}")
+    """The shape (:func:`cagekit.geometry.as_shape`), with at least two distinct points."""
+    v, f = as_shape(shape_v, shape_f)
     if len(v) < 2:
         raise InputError("a cage needs a shape with at least two distinct points")
-    if not np.all(np.isfinite(v)):
-        raise InputError("shape has NaN or inf coordinates")
-    f = np.zeros((0, 3), np.int64) if shape_f is None else np.asarray(shape_f)
-    f = f.reshape(-1, 3).astype(np.int64)
-    if len(f) and (f.min() < 0 or f.max() >= len(v)):
-        raise InputError("shape face index out of range")
     _frame(v)  # refuses shapes whose extent is zero, overflows or cannot be resolved
     return v, f
 
 
 def _frame(v):
     """Bounding-box centre and diagonal of a shape (the fitting frame's unit)."""
-    from cagekit.geometry import bounding_box, bounding_box_diagonal
+    from cagekit.frame import bounding_box, bounding_box_diagonal
 
     try:
         centre, extent = bounding_box(v)
@@ -123,7 +112,8 @@ def _samples(v, f, n, seed):
     """Vertices plus ``n`` area-uniform samples (mesh) or the points themselves (cloud)."""
     if len(f) == 0:
         return v
-    from cagekit.geometry import face_areas, sample_surface
+    from cagekit.geometry import face_areas
+    from cagekit.sampling import sample_surface
 
     if not face_areas(v, f).sum() > 0:
         return v
@@ -455,9 +445,9 @@ def _fit_template(v, samples, margin):
 
 
 def _n_components(f):
-    from cagekit.cage import _components
+    from cagekit.cage import face_components
 
-    return len(np.unique(_components(int(f.max()) + 1, f))) if len(f) else 0
+    return len(np.unique(face_components(int(f.max()) + 1, f))) if len(f) else 0
 
 
 def _cut_faces(cv, cf, v, f, alone=None):

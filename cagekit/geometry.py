@@ -13,11 +13,6 @@ Decisions
   libigl returns a CSC matrix; it is converted to CSR. A face of zero area makes a
   cotangent infinite (libigl then returns inf and NaN entries), so it is refused with
   :class:`~cagekit.errors.InputError` instead.
-- :func:`normalize` is the paper's frame: bounding-box centre to the origin, divided by
-  the largest half-extent.
-- :func:`sample_surface` uses ``trimesh.sample.sample_surface`` (area-weighted face choice,
-  uniform point in the triangle) with a seeded ``numpy.random.Generator``; no global
-  random state is touched.
 - Neighbourhoods are a :class:`Neighborhoods` pair of padded arrays ``(index, mask)``,
   both ``(n, m)``: row ``i`` lists vertex ``i`` itself (column 0 for meshes) and its
   neighbours; padding slots repeat ``i`` and have ``mask`` False. Gathering
@@ -41,7 +36,6 @@ from typing import NamedTuple
 import igl
 import numpy as np
 import scipy.sparse
-import trimesh
 from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
@@ -49,21 +43,17 @@ from cagekit.errors import InputError
 
 __all__ = [
     "Neighborhoods",
+    "as_count",
     "as_faces",
+    "as_shape",
     "as_vertices",
-    "bounding_box",
-    "bounding_box_diagonal",
     "cotangent_laplacian",
-    "denormalize",
     "face_areas",
-    "normalize",
     "orient_normals",
     "pca_normals",
     "pca_planes",
     "point_to_plane",
     "remove_duplicate_faces",
-    "sample_surface",
-    "unpack_shape",
     "vertex_neighborhoods",
 ]
 
@@ -163,31 +153,65 @@ def as_faces(F: ArrayLike | None, n_vertices: int, name: str = "F") -> np.ndarra
     return arr
 
 
-def unpack_shape(shape) -> tuple:
-    """``(vertices, faces or None)`` of a shape given in any of the accepted forms.
+def as_shape(shape, faces=None, name: str = "shape") -> tuple[np.ndarray, np.ndarray]:
+    """Check and convert a shape given in any of the accepted forms: ``(V, F)``.
 
-    Accepts a ``trimesh.Trimesh`` or ``trimesh.PointCloud`` (anything with
-    ``.vertices``), a ``(V, F)`` pair (tuple or list; ``F`` may be None), or a bare
-    ``(n, 3)`` vertex array (a point cloud). A list of two points is a cloud, not a pair:
-    a pair's first member is 2-D. Nothing is validated (see :func:`as_vertices`,
-    :func:`as_faces`).
+    The one shape checker of cagekit: every function that takes a shape calls it.
+
+    Parameters
+    ----------
+    shape : trimesh object, (V, F) pair, or (n, 3) array_like
+        A ``trimesh.Trimesh`` or ``trimesh.PointCloud`` (anything with ``.vertices``), a
+        ``(V, F)`` pair (tuple or list; ``F`` may be None), or bare vertices (a point
+        cloud). A list of two points is a cloud, not a pair: a pair's first member is 2-D.
+    faces : (m, 3) array_like of int, optional
+        The faces, when ``shape`` is bare vertices (``fit_cage(V, F)``); giving both a
+        mesh object or pair and ``faces`` is an error.
+    name : str
+        What the error messages call the shape.
+
+    Returns
+    -------
+    V : (n, 3) float64, C-contiguous
+    F : (m, 3) int64
+        Empty (0, 3) for a point cloud.
+
+    Raises
+    ------
+    InputError
+        As :func:`as_vertices` and :func:`as_faces`.
 
     Examples
     --------
-    >>> V, F = unpack_shape([[0.0, 0, 0], [1.0, 1, 1]])
-    >>> F is None
-    True
+    >>> V, F = as_shape([[0.0, 0, 0], [1.0, 1, 1]])
+    >>> V.shape, F.shape
+    ((2, 3), (0, 3))
     """
     if hasattr(shape, "vertices"):
-        return shape.vertices, getattr(shape, "faces", None)
-    if (isinstance(shape, (tuple, list)) and len(shape) == 2 and np.ndim(shape[0]) == 2
+        V, F = shape.vertices, getattr(shape, "faces", None)
+    elif (isinstance(shape, (tuple, list)) and len(shape) == 2 and np.ndim(shape[0]) == 2
             and (shape[1] is None or np.ndim(shape[1]) == 2)):
-        return shape[0], shape[1]
-    return shape, None
+        V, F = shape
+    else:
+        V, F = shape, None
+        if faces is not None:
+            F, faces = faces, None
+    if faces is not None:
+        raise InputError(f"give the {name} as a mesh object or a (V, F) pair, or as "
+                         "vertices and faces, not both")
+    V = as_vertices(V, f"{name} vertices")
+    return V, as_faces(F, len(V), f"{name} faces")
 
 
-def _check_count(n: int, name: str, minimum: int) -> int:
-    """Return ``n`` as an int, raising InputError if it is not an integer >= minimum."""
+def as_count(n, name: str, minimum: int = 0) -> int:
+    """``n`` as an int, or :class:`~cagekit.errors.InputError` if it is not an integer
+    (bools are not) of at least ``minimum``.
+
+    Examples
+    --------
+    >>> as_count(3, "points", 1)
+    3
+    """
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < minimum:
         raise InputError(f"{name} must be an integer >= {minimum}, got {n!r}")
     return int(n)
@@ -317,210 +341,6 @@ def cotangent_laplacian(V: ArrayLike, F: ArrayLike) -> scipy.sparse.csr_matrix:
     return L
 
 
-# ------------------------------------------------------------------------ normalisation
-
-
-def normalize(V: ArrayLike) -> tuple[np.ndarray, np.ndarray, float]:
-    """Map a shape into the paper's frame: bounding box centred, largest half-extent 1.
-
-    Parameters
-    ----------
-    V : array_like, shape (n, 3), float
-        Vertex positions.
-
-    Returns
-    -------
-    Vn : numpy.ndarray, shape (n, 3), float64
-        ``(V - center) / scale``; it fits ``[-1, 1]^3`` and touches the box on the
-        longest axis.
-    center : numpy.ndarray, shape (3,), float64
-        Bounding-box centre of ``V``.
-    scale : float
-        Largest half-extent of the bounding box of ``V``.
-
-    Raises
-    ------
-    InputError
-        All points coincide (zero extent), the extent is not resolvable (see
-        :func:`bounding_box`), or bad input.
-
-    Examples
-    --------
-    >>> Vn, c, s = normalize([[0, 0, 0], [4, 2, 0]])
-    >>> Vn.tolist(), c.tolist(), s
-    ([[-1.0, -0.5, 0.0], [1.0, 0.5, 0.0]], [2.0, 1.0, 0.0], 2.0)
-    """
-    center, extent = bounding_box(V)
-    scale = float(0.5 * np.max(extent))
-    return (as_vertices(V) - center) / scale, center, scale
-
-
-#: smallest extent a shape may have: below it, differences of coordinates are subnormal
-#: numbers and lose digits (``2**52`` times the smallest normal float64, about 1e-292)
-MIN_EXTENT = float(np.finfo(np.float64).tiny * 2.0**52)
-
-
-def bounding_box(V: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
-    """Centre and extent of a shape's bounding box, checked to be resolvable in float64.
-
-    Parameters
-    ----------
-    V : array_like, shape (n, 3), float
-        Vertex positions.
-
-    Returns
-    -------
-    center : numpy.ndarray, shape (3,), float64
-    extent : numpy.ndarray, shape (3,), float64
-        ``max - min`` per axis; its largest entry is finite and at least
-        :data:`MIN_EXTENT`.
-
-    Raises
-    ------
-    InputError
-        All points coincide, the extent overflows, or it is so small (below
-        :data:`MIN_EXTENT`) that differences of coordinates lose digits.
-
-    Examples
-    --------
-    >>> c, e = bounding_box([[0, 0, 0], [4, 2, 0]])
-    >>> c.tolist(), e.tolist()
-    ([2.0, 1.0, 0.0], [4.0, 2.0, 0.0])
-    """
-    V = as_vertices(V)
-    lo, hi = V.min(axis=0), V.max(axis=0)
-    with np.errstate(over="ignore", invalid="ignore"):
-        extent = hi - lo
-    largest = float(np.max(extent))
-    if largest == 0.0:
-        raise InputError("all points of the shape coincide (zero extent)")
-    if not np.isfinite(largest):
-        raise InputError("the shape's extent overflows float64 (coordinates too large)")
-    if largest < MIN_EXTENT:
-        raise InputError(f"the shape's extent ({largest:.3g}) is too small to resolve in "
-                         "float64 (coordinates below about 1e-292 apart)")
-    # 0.5 lo + 0.5 hi: bit for bit 0.5 (lo + hi), without its overflow near 1e308
-    return 0.5 * lo + 0.5 * hi, extent
-
-
-def bounding_box_diagonal(extent: ArrayLike) -> float:
-    """Length of a bounding box's diagonal from its extent, without overflow or underflow.
-
-    Parameters
-    ----------
-    extent : array_like, shape (3,), float
-        As :func:`bounding_box` returns it.
-
-    Returns
-    -------
-    float
-
-    Examples
-    --------
-    >>> bounding_box_diagonal([1e300, 1e300, 0.0]) / 1e300
-    1.4142135623730951
-    """
-    extent = np.asarray(extent, dtype=np.float64)
-    largest = float(np.max(extent))
-    with np.errstate(over="ignore", under="ignore"):
-        plain = float(np.linalg.norm(extent))
-    if np.isfinite(plain) and plain >= largest:  # no overflow or underflow: the plain norm
-        return plain
-    return largest * float(np.linalg.norm(extent / largest))
-
-
-def denormalize(Vn: ArrayLike, center: ArrayLike, scale: float) -> np.ndarray:
-    """Inverse of :func:`normalize`: ``Vn * scale + center``.
-
-    Parameters
-    ----------
-    Vn : array_like, shape (n, 3), float
-        Points in the normalised frame.
-    center : array_like, shape (3,), float
-        Centre returned by :func:`normalize`.
-    scale : float
-        Scale returned by :func:`normalize`; finite and positive.
-
-    Returns
-    -------
-    V : numpy.ndarray, shape (n, 3), float64
-
-    Examples
-    --------
-    >>> denormalize([[1.0, 0.5, 0.0]], [2.0, 1.0, 0.0], 2.0).tolist()
-    [[4.0, 2.0, 0.0]]
-    """
-    Vn = as_vertices(Vn, "Vn")
-    center = np.asarray(center, dtype=np.float64)
-    if center.shape != (3,) or not np.isfinite(center).all():
-        raise InputError(f"center must be 3 finite numbers, got shape {center.shape}")
-    scale = float(scale)
-    if not (np.isfinite(scale) and scale > 0.0):
-        raise InputError(f"scale must be finite and positive, got {scale}")
-    return Vn * scale + center
-
-
-# ------------------------------------------------------------------------------ sampling
-
-
-def sample_surface(
-    V: ArrayLike, F: ArrayLike, n: int, seed: int = 0, return_faces: bool = False
-) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
-    """Sample points uniformly by area on a triangle mesh (seeded).
-
-    A face is chosen with probability proportional to its area, then a point uniformly
-    inside it (``trimesh.sample.sample_surface``, driven by
-    ``numpy.random.default_rng(seed)``; the global random state is not used).
-
-    Parameters
-    ----------
-    V : array_like, shape (v, 3), float
-        Vertex positions.
-    F : array_like, shape (m, 3), int
-        Triangles, ``m >= 1``, with positive total area.
-    n : int
-        Number of points, ``n >= 0``.
-    seed : int, optional
-        Seed; the same inputs and seed give the same points.
-    return_faces : bool, optional
-        Also return the face each point lies on.
-
-    Returns
-    -------
-    points : numpy.ndarray, shape (n, 3), float64
-    faces : numpy.ndarray, shape (n,), int64
-        Only when ``return_faces`` is True: index into ``F`` of each point's face.
-
-    Raises
-    ------
-    InputError
-        No faces, zero total area, face areas that overflow (coordinates too large),
-        negative ``n``, or bad input.
-
-    Examples
-    --------
-    >>> P, fi = sample_surface([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]], 4,
-    ...                        return_faces=True)
-    >>> P.shape, fi.tolist()
-    ((4, 3), [0, 0, 0, 0])
-    """
-    V = as_vertices(V)
-    F = as_faces(F, len(V))
-    n = _check_count(n, "n", 0)
-    if len(F) == 0:
-        raise InputError("cannot sample the surface of a point cloud (no faces)")
-    if not face_areas(V, F).sum() > 0.0:
-        raise InputError("cannot sample a surface of zero total area")
-    mesh = trimesh.Trimesh(vertices=V, faces=F, process=False, validate=False)
-    points, face_index = trimesh.sample.sample_surface(
-        mesh, n, seed=np.random.default_rng(seed)
-    )
-    points = np.ascontiguousarray(points, dtype=np.float64)
-    if return_faces:
-        return points, np.asarray(face_index, dtype=np.int64)
-    return points
-
-
 # ------------------------------------------------------------------------ neighbourhoods
 
 
@@ -618,7 +438,7 @@ def vertex_neighborhoods(
     F = as_faces(F, len(V))
     if len(F):
         return _one_ring(len(V), F)
-    return _knn(V, _check_count(k, "k", 1))
+    return _knn(V, as_count(k, "k", 1))
 
 
 def _as_neighborhoods(neighborhoods, n: int) -> Neighborhoods:

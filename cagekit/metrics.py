@@ -51,17 +51,18 @@ from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
 from cagekit.errors import InputError
+from cagekit.frame import normalize
 from cagekit.geometry import (
     as_faces,
+    as_shape,
     as_vertices,
     cotangent_laplacian,
     face_areas,
-    normalize,
     remove_duplicate_faces,
-    sample_surface,
 )
+from cagekit.sampling import surface_samples
 
-__all__ = ["chamfer", "chamfer_distance", "dcotlap", "evaluate", "surface_samples"]
+__all__ = ["chamfer", "chamfer_distance", "dcotlap", "evaluate"]
 
 
 def _nearest_sq(P: np.ndarray, Q: np.ndarray) -> np.ndarray:
@@ -95,48 +96,6 @@ def chamfer_distance(P: ArrayLike, Q: ArrayLike) -> float:
     P = as_vertices(P, "P")
     Q = as_vertices(Q, "Q")
     return float(_nearest_sq(P, Q).mean() + _nearest_sq(Q, P).mean())
-
-
-def surface_samples(
-    V: ArrayLike, F: ArrayLike | None, n: int = 5000, seed: int = 0
-) -> np.ndarray:
-    """Points standing for a shape in the Chamfer distance.
-
-    Parameters
-    ----------
-    V : array_like, shape (v, 3), float
-        Vertex positions.
-    F : array_like, shape (m, 3), int, or None
-        Triangles; ``None`` or empty for a point cloud.
-    n : int, optional
-        Number of samples.
-    seed : int, optional
-        Seed of ``numpy.random.default_rng``.
-
-    Returns
-    -------
-    points : numpy.ndarray, shape (n, 3) or (v, 3), float64
-        With faces: ``n`` points uniform by area (:func:`cagekit.geometry.sample_surface`).
-        A point cloud with ``v <= n`` points: the points themselves. A larger cloud: a
-        seeded random subset of ``n`` distinct points, in their original order.
-
-    Examples
-    --------
-    >>> surface_samples([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]], n=10).shape
-    (10, 3)
-    >>> surface_samples([[0, 0, 0], [1, 0, 0], [0, 1, 0]], None, n=10).shape
-    (3, 3)
-    """
-    V = as_vertices(V)
-    F = as_faces(F, len(V))
-    if len(F):
-        return sample_surface(V, F, n, seed=seed)
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-        raise InputError(f"n must be an integer >= 1, got {n!r}")
-    if len(V) <= n:
-        return V.copy()
-    keep = np.random.default_rng(seed).choice(len(V), size=int(n), replace=False)
-    return V[np.sort(keep)]
 
 
 def chamfer(
@@ -245,16 +204,6 @@ def dcotlap(V_src: ArrayLike, F_src: ArrayLike, V_out: ArrayLike) -> float:
     return float(np.mean(np.square(L @ (V_out - V_src))))
 
 
-def _mesh_pair(shape, name: str) -> tuple[np.ndarray, np.ndarray]:
-    """Unpack and check a ``(V, F)`` tuple."""
-    try:
-        V, F = shape
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be a (V, F) pair") from None
-    V = as_vertices(V, f"{name} vertices")
-    return V, as_faces(F, len(V), f"{name} faces")
-
-
 def evaluate(source, target, deformed, n_samples: int = 5000, seed: int = 0) -> dict:
     """CD and dCotLap of a deformed source against a target, in the paper's frames.
 
@@ -300,9 +249,9 @@ def evaluate(source, target, deformed, n_samples: int = 5000, seed: int = 0) -> 
     >>> 0.0 < m["cd"] < 1e-2, m["dcotlap"] < 1e-20  # CD: the sampling resolution only
     (True, True)
     """
-    Vs, Fs = _mesh_pair(source, "source")
-    Vt, Ft = _mesh_pair(target, "target")
-    Vd, Fd = _mesh_pair(deformed, "deformed")
+    Vs, Fs = as_shape(source, name="source")
+    Vt, Ft = as_shape(target, name="target")
+    Vd, Fd = as_shape(deformed, name="deformed")
     if len(Vd) != len(Vs):
         raise InputError(
             f"the deformed shape has {len(Vd)} vertices but the source has {len(Vs)}"

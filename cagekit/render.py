@@ -21,9 +21,11 @@ from matplotlib.figure import Figure
 from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the "3d" projection)
 from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
+from cagekit.cage import unique_edges
+from cagekit.geometry import as_shape
 from cagekit.io import atomic_output
 
-__all__ = ["MAX_FACES", "MAX_POINTS", "render_meshes", "render_grid", "unique_edges"]
+__all__ = ["MAX_FACES", "MAX_POINTS", "render_meshes", "render_grid"]
 
 #: At most this many faces of one mesh are drawn; larger meshes are subsampled
 #: (deterministically) so that a picture takes seconds, not minutes.
@@ -36,56 +38,6 @@ _SURFACE_RGB = np.array([0.62, 0.72, 0.86])
 _CLOUD_RGB = (0.25, 0.42, 0.70)
 _CAGE_RGB = (0.85, 0.33, 0.10)
 _AMBIENT = 0.22
-
-
-def unique_edges(faces: np.ndarray) -> np.ndarray:
-    """Undirected edges of a polygon mesh, each once.
-
-    Parameters
-    ----------
-    faces : (m, 3) int array
-        Triangle (or, with more columns, polygon) vertex indices.
-
-    Returns
-    -------
-    (e, 2) int64 array
-        Sorted pairs ``(i, j)`` with ``i < j``, in lexicographic order.
-
-    Examples
-    --------
-    >>> unique_edges(np.array([[0, 1, 2], [0, 2, 3]])).tolist()
-    [[0, 1], [0, 2], [0, 3], [1, 2], [2, 3]]
-    """
-    faces = np.asarray(faces, dtype=np.int64)
-    if faces.size == 0:
-        return np.zeros((0, 2), dtype=np.int64)
-    edges = np.stack([faces, np.roll(faces, -1, axis=1)], axis=-1).reshape(-1, 2)
-    edges = np.sort(edges, axis=1)
-    return np.unique(edges, axis=0)
-
-
-def _check_shape(shape, what: str) -> tuple[np.ndarray, np.ndarray]:
-    """Return ``(V, F)`` as ``(n, 3)`` float64 and ``(m, k)`` int64, or raise ValueError."""
-    if isinstance(shape, np.ndarray):
-        V, F = shape, None
-    else:
-        try:
-            V, F = shape
-        except (TypeError, ValueError):
-            raise ValueError(f"{what}: expected a (V, F) pair") from None
-    V = np.asarray(V, dtype=np.float64)
-    if V.ndim != 2 or V.shape[1] != 3:
-        raise ValueError(f"{what}: vertices must have shape (n, 3), got {V.shape}")
-    if F is None:
-        F = np.zeros((0, 3), dtype=np.int64)
-    F = np.asarray(F, dtype=np.int64)
-    if F.size == 0:
-        F = np.zeros((0, 3), dtype=np.int64)
-    if F.ndim != 2 or F.shape[1] < 3:
-        raise ValueError(f"{what}: faces must have shape (m, 3), got {F.shape}")
-    if F.size and (F.min() < 0 or F.max() >= len(V)):
-        raise ValueError(f"{what}: face indices out of range [0, {len(V)})")
-    return V, F
 
 
 def _to_display(V: np.ndarray, up: str) -> np.ndarray:
@@ -326,13 +278,14 @@ def render_meshes(
     meshes = list(meshes)
     if not meshes:
         raise ValueError("render_meshes needs at least one shape")
-    shapes = [_check_shape(m, f"shape {i}") for i, m in enumerate(meshes)]
+    shapes = [as_shape(m, name=f"shape {i}") for i, m in enumerate(meshes)]
     if cages is None:
         cages = [None] * len(shapes)
     cages = list(cages)
     if len(cages) != len(shapes):
         raise ValueError(f"got {len(cages)} cages for {len(shapes)} shapes")
-    cage_arrays = [None if c is None else _check_shape(c, f"cage {i}") for i, c in enumerate(cages)]
+    cage_arrays = [None if c is None else as_shape(c, name=f"cage {i}")
+                   for i, c in enumerate(cages)]
     if titles is not None:
         titles = [str(t) for t in titles]
         if len(titles) != len(shapes):

@@ -331,13 +331,13 @@ def _snap_rows(x, V, nrm, h, sd, cst: _Consts):
 
 def _closest_rows(x, V, faces_np):
     """Barycentric weights of the closest cage point (the core's fallback), as constants."""
-    from cagekit.coords.mvc import _closest_point_weights
+    from cagekit.coords.mvc import closest_point_weights
 
     xs = x.detach().to("cpu", torch.float64).numpy()
     vs = V.detach().to("cpu", torch.float64).numpy()
     out = np.zeros((len(xs), vs.shape[1]))
     for i in range(len(xs)):  # rare: only unresolvable rows, very far outside
-        _closest_point_weights(xs[i], np.ascontiguousarray(vs[i]), faces_np, out[i])
+        closest_point_weights(xs[i], np.ascontiguousarray(vs[i]), faces_np, out[i])
     return torch.as_tensor(out, dtype=x.dtype, device=x.device)
 
 

@@ -67,9 +67,10 @@ import numpy as np
 
 from cagekit.datasets import synthetic as _synthetic
 from cagekit.errors import InputError
-from cagekit.geometry import normalize
+from cagekit.frame import normalize
+from cagekit.geometry import as_count
 from cagekit.io import SUPPORTED_MESH_EXTENSIONS, atomic_output, load_shape
-from cagekit.metrics import surface_samples
+from cagekit.sampling import surface_samples
 
 __all__ = [
     "CACHE_DIRNAME",
@@ -115,13 +116,6 @@ FIXED_SOURCE = -1
 # ------------------------------------------------------------------------------ helpers
 
 
-def _count(value, name: str, minimum: int = 0) -> int:
-    """``value`` as an int >= ``minimum``, or InputError."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise InputError(f"{name} must be an integer >= {minimum}, got {value!r}")
-    return int(value)
-
-
 def _shape_seed(seed: int, name: str) -> int:
     """Sampling seed of one shape: a function of ``(seed, name)`` only."""
     state = np.random.SeedSequence([_TAG_SAMPLES, seed, zlib.crc32(name.encode("utf-8"))])
@@ -134,15 +128,7 @@ def _sample_shape(V, F, points: int, seed: int) -> np.ndarray:
     Raises InputError for shapes that cannot be normalised or sampled (zero extent, zero
     area).
     """
-    Vn = normalize(V)[0]
-    if len(F):
-        P = surface_samples(Vn, F, points, seed=seed)
-    else:  # a point cloud: P of its points
-        rng = np.random.default_rng(seed)
-        if len(Vn) >= points:
-            P = Vn[np.sort(rng.choice(len(Vn), size=points, replace=False))]
-        else:
-            P = Vn[rng.integers(0, len(Vn), size=points)]
+    P = surface_samples(normalize(V)[0], F, points, seed=seed, fill=True)
     return np.ascontiguousarray(P, dtype=np.float32)
 
 
@@ -371,9 +357,9 @@ class ShapeCollection:
         if family not in _synthetic.FAMILIES:
             raise InputError(f"unknown family {family!r}; available: "
                              f"{', '.join(_synthetic.FAMILIES)}")
-        n = _count(n, "n")
-        seed = _count(seed, "seed")
-        points = _count(points, "points", 1)
+        n = as_count(n, "n")
+        seed = as_count(seed, "seed")
+        points = as_count(points, "points", 1)
         names, samples = [], []
         for i, (V, F) in enumerate(_synthetic.family(family, n, seed=seed,
                                                      resolution=resolution)):
@@ -439,8 +425,8 @@ class ShapeCollection:
         >>> c.names[0]  # doctest: +SKIP
         '1006be65e7bc937e9141f9b58470d646/models/model_normalized.obj'
         """
-        points = _count(points, "points", 1)
-        seed = _count(seed, "seed")
+        points = as_count(points, "points", 1)
+        seed = as_count(seed, "seed")
         base = pathlib.Path(root)
         paths = find_meshes(base)
         if not paths:
@@ -558,8 +544,8 @@ class ShapeCollection:
         >>> len(train), len(test), sorted(train.names + test.names) == list("abcde")
         (3, 2, True)
         """
-        n_test = _count(n_test, "n_test")
-        seed = _count(seed, "seed")
+        n_test = as_count(n_test, "n_test")
+        seed = as_count(seed, "seed")
         if n_test > len(self):
             raise InputError(f"n_test must be at most the number of shapes ({len(self)}), "
                              f"got {n_test}")
@@ -604,9 +590,9 @@ def corresponding_rows(n_vertices: int, points: int, seed: int = 0) -> np.ndarra
     >>> corresponding_rows(10, 4, seed=1).shape
     (4,)
     """
-    n = _count(n_vertices, "n_vertices", 1)
-    points = _count(points, "points", 1)
-    rng = np.random.default_rng([_TAG_CORRESPONDING, _count(seed, "seed")])
+    n = as_count(n_vertices, "n_vertices", 1)
+    points = as_count(points, "points", 1)
+    rng = np.random.default_rng([_TAG_CORRESPONDING, as_count(seed, "seed")])
     rows = (np.sort(rng.choice(n, size=points, replace=False)) if n >= points
             else rng.integers(0, n, size=points))
     return rows.astype(np.int64)
@@ -677,8 +663,8 @@ class FixedSource:
             An unreadable or degenerate file, or (``corresponding``) a vertex count that
             differs from ``vertex_count``; the message names the file.
         """
-        points = _count(points, "points", 1)
-        seed = _count(seed, "seed")
+        points = as_count(points, "points", 1)
+        seed = as_count(seed, "seed")
         path = pathlib.Path(path)
         V, F = load_shape(path)
         try:
@@ -788,8 +774,8 @@ def epoch_pairs(n_shapes: int, epoch: int, seed: int = 0) -> np.ndarray:
     >>> sorted(p[:, 0].tolist()), bool((p[:, 0] != p[:, 1]).all())
     ([0, 1, 2, 3, 4], True)
     """
-    n = _count(n_shapes, "n_shapes", 2)
-    rng = np.random.default_rng([_TAG_PAIRS, _count(seed, "seed"), _count(epoch, "epoch")])
+    n = as_count(n_shapes, "n_shapes", 2)
+    rng = np.random.default_rng([_TAG_PAIRS, as_count(seed, "seed"), as_count(epoch, "epoch")])
     sources = rng.permutation(n).astype(np.int64)
     targets = (sources + rng.integers(1, n, size=n)) % n
     return np.stack([sources, targets], axis=1).astype(np.int64)
@@ -822,9 +808,9 @@ def fixed_source_pairs(n_targets: int, epoch: int, seed: int = 0) -> np.ndarray:
     >>> p[:, 0].tolist(), sorted(p[:, 1].tolist())
     ([-1, -1, -1, -1], [0, 1, 2, 3])
     """
-    n = _count(n_targets, "n_targets", 1)
-    rng = np.random.default_rng([_TAG_FIXED_PAIRS, _count(seed, "seed"),
-                                 _count(epoch, "epoch")])
+    n = as_count(n_targets, "n_targets", 1)
+    rng = np.random.default_rng([_TAG_FIXED_PAIRS, as_count(seed, "seed"),
+                                 as_count(epoch, "epoch")])
     targets = rng.permutation(n).astype(np.int64)
     return np.stack([np.full(n, FIXED_SOURCE, dtype=np.int64), targets], axis=1)
 
@@ -862,8 +848,8 @@ def shard(pairs, rank: int, world_size: int) -> np.ndarray:
     if pairs.ndim != 2 or pairs.shape[1] != 2 or not np.issubdtype(pairs.dtype, np.integer):
         raise InputError(f"pairs must be an (n, 2) integer array, got {pairs.dtype} "
                          f"{pairs.shape}")
-    world_size = _count(world_size, "world_size", 1)
-    rank = _count(rank, "rank")
+    world_size = as_count(world_size, "world_size", 1)
+    rank = as_count(rank, "rank")
     if rank >= world_size:
         raise InputError(f"rank must be below world_size ({world_size}), got {rank}")
     if len(pairs) < world_size:
@@ -974,7 +960,7 @@ def make_batch(collection, pairs, *, epoch, step, seed=0, augmentation=True,
     if len(pairs) and (indexed.min() < 0 or indexed.max() >= len(data)):
         raise InputError(f"pair indices must lie in [0, {len(data)}), got "
                          f"{indexed.min()}..{indexed.max()}")
-    seed, epoch, step = _count(seed, "seed"), _count(epoch, "epoch"), _count(step, "step")
+    seed, epoch, step = as_count(seed, "seed"), as_count(epoch, "epoch"), as_count(step, "step")
     pairs = pairs.astype(np.int64)
     target = data[pairs[:, 1]]
     if fixed:

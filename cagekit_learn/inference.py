@@ -25,11 +25,12 @@ import torch
 
 from cagekit.cage import check_cage, self_intersecting_faces
 from cagekit.coords import bind
-from cagekit.deformation import DeformResult, _as_pair
+from cagekit.deformation import DeformResult
 from cagekit.deformation import deform as optimise
 from cagekit.errors import CagekitWarning, InputError
-from cagekit.geometry import normalize
-from cagekit.metrics import surface_samples
+from cagekit.frame import normalize
+from cagekit.geometry import as_shape
+from cagekit.sampling import surface_samples
 from cagekit_learn.networks import NeuralCages
 
 __all__ = ["predict", "predict_fixed_source", "predict_cages", "deform_with_model"]
@@ -139,8 +140,8 @@ def predict_cages(model: NeuralCages, source, target, *, points: int | None = No
     cage_v, deformed_cage_v : (k, 3) float64
         In the source's and the target's frames and units; faces ``model.cage_f``.
     """
-    Vs, Fs = _as_pair(source, "source")
-    Vt, Ft = _as_pair(target, "target")
+    Vs, Fs = as_shape(source, name="source")
+    Vt, Ft = as_shape(target, name="target")
     _, (cs, ss), (ct, st), cage_n, deformed_n = _predicted(model, Vs, Fs, Vt, Ft, points,
                                                            seed)
     return cage_n * ss + cs, deformed_n * st + ct
@@ -184,8 +185,8 @@ def deform_with_model(model: NeuralCages, source, target, *, points: int | None 
     samples otherwise.
     """
     start = time.perf_counter()
-    Vs, Fs = _as_pair(source, "source")
-    Vt, Ft = _as_pair(target, "target")
+    Vs, Fs = as_shape(source, name="source")
+    Vt, Ft = as_shape(target, name="target")
     Vs_n, (cs, ss), (ct, st), cage_n, deformed_n = _predicted(model, Vs, Fs, Vt, Ft,
                                                               points, seed)
     cage_f = model.cage_f.cpu().numpy()

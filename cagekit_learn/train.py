@@ -229,7 +229,7 @@ def load_source_cage(cage_path, template=None) -> tuple[list, list]:
 
     from cagekit import io
     from cagekit.cage import check_cage
-    from cagekit.geometry import normalize
+    from cagekit.frame import normalize
 
     cage_v, cage_f = io.load_mesh(cage_path)
     if template is not None:

@@ -124,7 +124,7 @@ def test_deterministic():
 
 
 @pytest.mark.parametrize("shape, message", [
-    (np.zeros((0, 3)), "at least two"),
+    (np.zeros((0, 3)), "no points"),
     (np.array([[0.0, 0.0, 0.0]]), "at least two"),
     (np.array([[0.0, 0.0, np.nan], [1.0, 0.0, 0.0]]), "NaN"),
     (np.ones((5, 3)), "coincide"),

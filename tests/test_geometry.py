@@ -8,18 +8,17 @@ from scipy.spatial.transform import Rotation
 
 from cagekit import geometry
 from cagekit.errors import InputError
+from cagekit.frame import denormalize, normalize
 from cagekit.geometry import (
     Neighborhoods,
     cotangent_laplacian,
-    denormalize,
-    normalize,
     pca_normals,
     pca_planes,
     point_to_plane,
     remove_duplicate_faces,
-    sample_surface,
     vertex_neighborhoods,
 )
+from cagekit.sampling import sample_surface
 
 SQUARE_V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], dtype=float)
 SQUARE_F = np.array([[0, 1, 2], [1, 3, 2]])
@@ -182,7 +181,7 @@ def test_normalize_rejects_degenerate_input():
 
 @pytest.mark.parametrize("scale", [1e-290, 1e-150, 1.0, 1e150, 1e300])
 def test_bounding_box_is_resolvable_at_any_scale(scale):
-    from cagekit.geometry import bounding_box, bounding_box_diagonal
+    from cagekit.frame import bounding_box, bounding_box_diagonal
 
     V = np.array([[0.0, 0, 0], [2.0, 1, 0], [1.0, 0, 1]]) * scale + 3.0 * scale
     center, extent = bounding_box(V)
@@ -193,7 +192,7 @@ def test_bounding_box_is_resolvable_at_any_scale(scale):
 
 
 def test_bounding_box_refuses_what_float64_cannot_resolve():
-    from cagekit.geometry import bounding_box
+    from cagekit.frame import bounding_box
 
     with pytest.raises(InputError, match="too small to resolve"):
         bounding_box([[0.0, 0, 0], [1e-300, 0, 0]])

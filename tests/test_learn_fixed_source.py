@@ -15,7 +15,7 @@ from click.testing import CliRunner  # noqa: E402
 from cagekit import io  # noqa: E402
 from cagekit.cli import main  # noqa: E402
 from cagekit.errors import InputError  # noqa: E402
-from cagekit.geometry import normalize  # noqa: E402
+from cagekit.frame import normalize  # noqa: E402
 from cagekit_learn.checkpoint import load_checkpoint  # noqa: E402
 from cagekit_learn.data import (  # noqa: E402
     FIXED_SOURCE,

@@ -13,8 +13,9 @@ torch = pytest.importorskip("torch")
 from cagekit import bind, io  # noqa: E402
 from cagekit.cli import main  # noqa: E402
 from cagekit.datasets import synthetic  # noqa: E402
-from cagekit.geometry import normalize  # noqa: E402
-from cagekit.metrics import evaluate, surface_samples  # noqa: E402
+from cagekit.frame import normalize  # noqa: E402
+from cagekit.metrics import evaluate  # noqa: E402
+from cagekit.sampling import surface_samples  # noqa: E402
 from cagekit_learn.inference import deform_with_model, predict  # noqa: E402
 from cagekit_learn.train import load_model  # noqa: E402
 

@@ -209,7 +209,7 @@ def test_two_torchrun_processes_keep_identical_weights(tmp_path):
 def test_l2_alignment_trains_on_shapes_in_correspondence(tmp_path):
     from cagekit import io
     from cagekit.datasets import synthetic
-    from cagekit.geometry import normalize
+    from cagekit.frame import normalize
 
     V, F = synthetic.vase(1, resolution=0.5)
     folder = tmp_path / "poses"

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from matplotlib.image import imread
 
-from cagekit.render import MAX_FACES, render_meshes, unique_edges
+from cagekit.cage import unique_edges
+from cagekit.render import MAX_FACES, render_meshes
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 EXAMPLE = os.path.join(ROOT, "data", "example")

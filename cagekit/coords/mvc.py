@@ -92,10 +92,10 @@ import numpy as np
 
 from cagekit.cage import cage_topology, distance_in_diagonals
 from cagekit.coords.fastangle import half_angle_over_sin
-from cagekit.geometry import bounding_box_diagonal
+from cagekit.frame import bounding_box_diagonal
 
 __all__ = ["mean_value_coordinates", "affine_extension_weights", "affine_extension_matrix",
-           "DEFAULT_SNAP", "FAR_BLEND"]
+           "closest_point_weights", "DEFAULT_SNAP", "FAR_BLEND"]
 
 DEFAULT_SNAP = 1e-13
 
@@ -110,8 +110,13 @@ def _cross(ax, ay, az, bx, by, bz):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _closest_point_weights(x, cage_v, faces, row):
-    """Barycentric weights of the cage point closest to ``x`` (finite fallback)."""
+def closest_point_weights(x, cage_v, faces, row):
+    """Barycentric weights of the cage point closest to ``x``, written into ``row`` (numba).
+
+    The fallback for a point whose MVC weight sum cannot be resolved; the torch twin uses it
+    too. ``x`` (3,) float64, ``cage_v`` (k, 3) float64, ``faces`` (m, 3) int64, ``row``
+    (k,) float64 (overwritten: zero but for the closest face's three vertices).
+    """
     best = np.inf
     best_f = 0
     best_b = np.zeros(3)
@@ -391,7 +396,7 @@ def _mvc_kernel(points, cage_v, faces, edges, face_edges, face_signs, face_n, fa
                 for j in range(k):
                     row[j] = acc1[j, 0]
                 if not _normalise_row(row):
-                    _closest_point_weights(points[i], cage_v, faces, row)
+                    closest_point_weights(points[i], cage_v, faces, row)
 
 
 def mean_value_coordinates(points, cage_v, cage_f, snap: float = DEFAULT_SNAP, out=None,

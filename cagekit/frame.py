@@ -1,0 +1,212 @@
+"""A shape's normalised frame: the one place where shapes go to unit size and back.
+
+Every algorithm works on shapes moved into a frame (bounding-box centre at the origin,
+divided by a scale) and hands results back in the user's own frame and units. The paper's
+frame (DESIGN.md, "Normalisation") divides by the largest half-extent; :func:`fit_cage`,
+whose tolerances are fractions of the bounding-box diagonal, divides by the diagonal.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from cagekit.errors import InputError
+
+__all__ = ["Frame", "MIN_EXTENT", "bounding_box", "bounding_box_diagonal", "normalize",
+           "denormalize"]
+
+#: smallest extent a shape may have: below it, differences of coordinates are subnormal
+#: numbers and lose digits (``2**52`` times the smallest normal float64, about 1e-292)
+MIN_EXTENT = float(np.finfo(np.float64).tiny * 2.0**52)
+
+UNITS = ("half_extent", "diagonal")
+
+
+def _vertices(V) -> np.ndarray:
+    from cagekit.geometry import as_vertices
+
+    return as_vertices(V)
+
+
+@dataclass(frozen=True)
+class Frame:
+    """``unit = (world - centre) / scale``.
+
+    Attributes
+    ----------
+    centre : (3,) float64
+    scale : float
+        Positive and finite.
+
+    Examples
+    --------
+    >>> f = Frame.of([[0, 0, 0], [4, 2, 0]])
+    >>> f.centre.tolist(), f.scale, f.to_unit([[4, 2, 0]]).tolist()
+    ([2.0, 1.0, 0.0], 2.0, [[1.0, 0.5, 0.0]])
+    """
+
+    centre: np.ndarray
+    scale: float
+
+    def __post_init__(self):
+        centre = np.asarray(self.centre, dtype=np.float64)
+        if centre.shape != (3,) or not np.isfinite(centre).all():
+            raise InputError(f"a frame's centre must be 3 finite numbers, got {centre}")
+        scale = float(self.scale)
+        if not (np.isfinite(scale) and scale > 0.0):
+            raise InputError(f"a frame's scale must be finite and positive, got {scale}")
+        object.__setattr__(self, "centre", centre)
+        object.__setattr__(self, "scale", scale)
+
+    @classmethod
+    def of(cls, V: ArrayLike, unit: str = "half_extent") -> Frame:
+        """The frame of a shape: its bounding-box centre and, as the unit, its largest
+        half-extent (the paper's, default) or its diagonal (``unit="diagonal"``).
+
+        Raises :class:`~cagekit.errors.InputError` for a shape whose extent is zero,
+        overflows or cannot be resolved (:func:`bounding_box`).
+        """
+        if unit not in UNITS:
+            raise InputError(f"unit must be one of {', '.join(UNITS)}, got {unit!r}")
+        centre, extent = bounding_box(V)
+        if unit == "diagonal":
+            return cls(centre, bounding_box_diagonal(extent))
+        return cls(centre, float(0.5 * np.max(extent)))
+
+    def to_unit(self, X: ArrayLike) -> np.ndarray:
+        """World points (n, 3) -> points in this frame, float64."""
+        return (_vertices(X) - self.centre) / self.scale
+
+    def to_world(self, X: ArrayLike) -> np.ndarray:
+        """Points in this frame (n, 3) -> world points, float64."""
+        return _vertices(X) * self.scale + self.centre
+
+
+def bounding_box(V: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    """Centre and extent of a shape's bounding box, checked to be resolvable in float64.
+
+    Parameters
+    ----------
+    V : array_like, shape (n, 3), float
+        Vertex positions.
+
+    Returns
+    -------
+    center : numpy.ndarray, shape (3,), float64
+    extent : numpy.ndarray, shape (3,), float64
+        ``max - min`` per axis; its largest entry is finite and at least
+        :data:`MIN_EXTENT`.
+
+    Raises
+    ------
+    InputError
+        All points coincide, the extent overflows, or it is so small (below
+        :data:`MIN_EXTENT`) that differences of coordinates lose digits.
+
+    Examples
+    --------
+    >>> c, e = bounding_box([[0, 0, 0], [4, 2, 0]])
+    >>> c.tolist(), e.tolist()
+    ([2.0, 1.0, 0.0], [4.0, 2.0, 0.0])
+    """
+    V = _vertices(V)
+    lo, hi = V.min(axis=0), V.max(axis=0)
+    with np.errstate(over="ignore", invalid="ignore"):
+        extent = hi - lo
+    largest = float(np.max(extent))
+    if largest == 0.0:
+        raise InputError("all points of the shape coincide (zero extent)")
+    if not np.isfinite(largest):
+        raise InputError("the shape's extent overflows float64 (coordinates too large)")
+    if largest < MIN_EXTENT:
+        raise InputError(f"the shape's extent ({largest:.3g}) is too small to resolve in "
+                         "float64 (coordinates below about 1e-292 apart)")
+    # 0.5 lo + 0.5 hi: bit for bit 0.5 (lo + hi), without its overflow near 1e308
+    return 0.5 * lo + 0.5 * hi, extent
+
+
+def bounding_box_diagonal(extent: ArrayLike) -> float:
+    """Length of a bounding box's diagonal from its extent, without overflow or underflow.
+
+    Parameters
+    ----------
+    extent : array_like, shape (3,), float
+        As :func:`bounding_box` returns it.
+
+    Returns
+    -------
+    float
+
+    Examples
+    --------
+    >>> bounding_box_diagonal([1e300, 1e300, 0.0]) / 1e300
+    1.4142135623730951
+    """
+    extent = np.asarray(extent, dtype=np.float64)
+    largest = float(np.max(extent))
+    with np.errstate(over="ignore", under="ignore"):
+        plain = float(np.linalg.norm(extent))
+    if np.isfinite(plain) and plain >= largest:  # no overflow or underflow: the plain norm
+        return plain
+    return largest * float(np.linalg.norm(extent / largest))
+
+
+def normalize(V: ArrayLike) -> tuple[np.ndarray, np.ndarray, float]:
+    """Map a shape into the paper's frame: bounding box centred, largest half-extent 1.
+
+    Parameters
+    ----------
+    V : array_like, shape (n, 3), float
+        Vertex positions.
+
+    Returns
+    -------
+    Vn : numpy.ndarray, shape (n, 3), float64
+        ``(V - center) / scale``; it fits ``[-1, 1]^3`` and touches the box on the
+        longest axis.
+    center : numpy.ndarray, shape (3,), float64
+        Bounding-box centre of ``V``.
+    scale : float
+        Largest half-extent of the bounding box of ``V``.
+
+    Raises
+    ------
+    InputError
+        All points coincide (zero extent), the extent is not resolvable (see
+        :func:`bounding_box`), or bad input.
+
+    Examples
+    --------
+    >>> Vn, c, s = normalize([[0, 0, 0], [4, 2, 0]])
+    >>> Vn.tolist(), c.tolist(), s
+    ([[-1.0, -0.5, 0.0], [1.0, 0.5, 0.0]], [2.0, 1.0, 0.0], 2.0)
+    """
+    frame = Frame.of(V)
+    return frame.to_unit(V), frame.centre, frame.scale
+
+
+def denormalize(Vn: ArrayLike, center: ArrayLike, scale: float) -> np.ndarray:
+    """Inverse of :func:`normalize`: ``Vn * scale + center``.
+
+    Parameters
+    ----------
+    Vn : array_like, shape (n, 3), float
+        Points in the normalised frame.
+    center : array_like, shape (3,), float
+        Centre returned by :func:`normalize`.
+    scale : float
+        Scale returned by :func:`normalize`; finite and positive.
+
+    Returns
+    -------
+    V : numpy.ndarray, shape (n, 3), float64
+
+    Examples
+    --------
+    >>> denormalize([[1.0, 0.5, 0.0]], [2.0, 1.0, 0.0], 2.0).tolist()
+    [[4.0, 2.0, 0.0]]
+    """
+    return Frame(center, scale).to_world(Vn)

@@ -1,0 +1,144 @@
+"""Seeded samples of shapes: the one place points are drawn from a surface or a cloud.
+
+Faces are chosen with probability proportional to their area and a point uniformly inside
+each (``trimesh.sample.sample_surface``, driven by a ``numpy.random.Generator`` made from
+the seed; the global random state is never used). A point cloud stands for itself: its
+points, or a seeded subset of them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import trimesh
+from numpy.typing import ArrayLike
+
+from cagekit.errors import InputError
+from cagekit.geometry import as_count, as_faces, as_vertices, face_areas
+
+__all__ = ["sample_surface", "surface_samples", "subset"]
+
+
+def sample_surface(
+    V: ArrayLike, F: ArrayLike, n: int, seed: int = 0, return_faces: bool = False
+) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+    """Sample points uniformly by area on a triangle mesh (seeded).
+
+    A face is chosen with probability proportional to its area, then a point uniformly
+    inside it (``trimesh.sample.sample_surface``, driven by
+    ``numpy.random.default_rng(seed)``; the global random state is not used).
+
+    Parameters
+    ----------
+    V : array_like, shape (v, 3), float
+        Vertex positions.
+    F : array_like, shape (m, 3), int
+        Triangles, ``m >= 1``, with positive total area.
+    n : int
+        Number of points, ``n >= 0``.
+    seed : int, optional
+        Seed; the same inputs and seed give the same points.
+    return_faces : bool, optional
+        Also return the face each point lies on.
+
+    Returns
+    -------
+    points : numpy.ndarray, shape (n, 3), float64
+    faces : numpy.ndarray, shape (n,), int64
+        Only when ``return_faces`` is True: index into ``F`` of each point's face.
+
+    Raises
+    ------
+    InputError
+        No faces, zero total area, face areas that overflow (coordinates too large),
+        negative ``n``, or bad input.
+
+    Examples
+    --------
+    >>> P, fi = sample_surface([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]], 4,
+    ...                        return_faces=True)
+    >>> P.shape, fi.tolist()
+    ((4, 3), [0, 0, 0, 0])
+    """
+    V = as_vertices(V)
+    F = as_faces(F, len(V))
+    n = as_count(n, "n", 0)
+    if len(F) == 0:
+        raise InputError("cannot sample the surface of a point cloud (no faces)")
+    if not face_areas(V, F).sum() > 0.0:
+        raise InputError("cannot sample a surface of zero total area")
+    mesh = trimesh.Trimesh(vertices=V, faces=F, process=False, validate=False)
+    points, face_index = trimesh.sample.sample_surface(
+        mesh, n, seed=np.random.default_rng(seed)
+    )
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    if return_faces:
+        return points, np.asarray(face_index, dtype=np.int64)
+    return points
+
+
+def subset(n: int, limit: int, rng: np.random.Generator) -> np.ndarray:
+    """Sorted indices of a seeded subset of ``range(n)`` of size ``min(n, limit)``.
+
+    Parameters
+    ----------
+    n, limit : int
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    (min(n, limit),) int64, increasing; ``arange(n)`` when ``n <= limit``.
+
+    Examples
+    --------
+    >>> subset(5, 10, np.random.default_rng(0)).tolist()
+    [0, 1, 2, 3, 4]
+    """
+    if n <= limit:
+        return np.arange(n)
+    return np.sort(rng.choice(n, size=limit, replace=False))
+
+
+def surface_samples(V: ArrayLike, F: ArrayLike | None, n: int = 5000, seed: int = 0,
+                    fill: bool = False) -> np.ndarray:
+    """Points standing for a shape: area-uniform samples of a mesh, or a cloud's points.
+
+    Parameters
+    ----------
+    V : array_like, shape (v, 3), float
+        Vertex positions.
+    F : array_like, shape (m, 3), int, or None
+        Triangles; ``None`` or empty for a point cloud.
+    n : int, optional
+        Number of samples.
+    seed : int, optional
+        Seed of ``numpy.random.default_rng``.
+    fill : bool, default False
+        A cloud of fewer than ``n`` points gives exactly ``n`` all the same: its points drawn
+        with replacement (training batches need equal sizes).
+
+    Returns
+    -------
+    points : numpy.ndarray, shape (n, 3) or (v, 3), float64
+        With faces: ``n`` points uniform by area (:func:`sample_surface`). A point cloud with
+        ``v <= n`` points: the points themselves (``fill``: ``n`` of them, with
+        replacement, when ``v < n``). A larger cloud: a seeded subset of ``n`` distinct
+        points, in their original order (:func:`subset`).
+
+    Examples
+    --------
+    >>> surface_samples([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]], n=10).shape
+    (10, 3)
+    >>> surface_samples([[0, 0, 0], [1, 0, 0], [0, 1, 0]], None, n=10).shape
+    (3, 3)
+    """
+    V = as_vertices(V)
+    F = as_faces(F, len(V))
+    if len(F):
+        return sample_surface(V, F, n, seed=seed)
+    n = as_count(n, "n", 1)
+    rng = np.random.default_rng(seed)
+    if len(V) < n and fill:
+        return V[rng.integers(0, len(V), size=n)]
+    if len(V) <= n:
+        return V.copy()
+    return V[subset(len(V), n, rng)]
