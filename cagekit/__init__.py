@@ -30,7 +30,7 @@ _EXPORTS = {
     "winding_numbers": "cagekit.cage",
     "cotangent_laplacian": "cagekit.geometry", "normalize": "cagekit.frame",
     "denormalize": "cagekit.frame", "Frame": "cagekit.frame",
-    "sample_surface": "cagekit.geometry",
+    "sample_surface": "cagekit.sampling", "surface_samples": "cagekit.sampling",
     "pca_normals": "cagekit.geometry", "point_to_plane": "cagekit.geometry",
     "chamfer": "cagekit.metrics", "chamfer_distance": "cagekit.metrics",
     "dcotlap": "cagekit.metrics", "evaluate": "cagekit.metrics",
@@ -44,7 +44,7 @@ _EXPORTS = {
 }
 #: submodules reachable as attributes (``cagekit.io.load_mesh``) without importing them first
 _SUBMODULES = ("shapes", "cage", "coords", "datasets", "deformation", "errors", "fitting",
-               "frame", "geometry", "io", "losses", "metrics", "render")
+               "frame", "geometry", "io", "losses", "metrics", "render", "sampling")
 
 __all__ = [*_EXPORTS, *_SUBMODULES, "__version__"]
 
