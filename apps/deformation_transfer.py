@@ -145,11 +145,8 @@ def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
     -------
     CharacterCage
     """
-    from cagekit_learn.consistency import (
-        box_alignment,
-        fit_cage_by_consistency,
-        similarity_alignment,
-    )
+    from cagekit.alignment import box_alignment, similarity_alignment
+    from cagekit_learn.consistency import fit_cage_by_consistency
 
     match = io.match_landmarks(template_landmarks, character_landmarks,
                                source_name=template_name, target_name=character_name)
@@ -363,7 +360,7 @@ def transfer_cage(template_cage_v, deformed_template_cage_v, character_cage_v,
 
     Examples
     --------
-    >>> from cagekit_learn.consistency import Similarity
+    >>> from cagekit.alignment import Similarity
     >>> A = Similarity(2.0, np.eye(3), np.zeros(3))
     >>> transfer_cage(np.zeros((1, 3)), np.ones((1, 3)), np.full((1, 3), 5.0), A).tolist()
     [[7.0, 7.0, 7.0]]

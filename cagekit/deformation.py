@@ -81,11 +81,11 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
-import nlopt
 import numpy as np
 from scipy.spatial import cKDTree
 
 from cagekit import losses
+from cagekit.alignment import box_scale
 from cagekit.cage import check_cage
 from cagekit.coords import bind
 from cagekit.coords.binding import warn_outside
@@ -97,9 +97,10 @@ from cagekit.geometry import (
     cotangent_laplacian,
     vertex_neighborhoods,
 )
+from cagekit.optimize import minimise
 from cagekit.sampling import subset, surface_samples
 
-__all__ = ["DeformResult", "DEFAULT_WEIGHTS", "METHODS", "deform", "box_scale"]
+__all__ = ["DeformResult", "DEFAULT_WEIGHTS", "METHODS", "deform"]
 
 METHODS = ("cage", "scale", "nricp")
 REFERENCES = ("source", "aligned")
@@ -162,34 +163,6 @@ class DeformResult:
     seconds: float = 0.0
 
 
-# ------------------------------------------------------------------------------ inputs
-
-
-def box_scale(Vs_n, Vt_n) -> np.ndarray:
-    """Per-axis factors mapping the bounding box of one centred shape onto another's.
-
-    Parameters
-    ----------
-    Vs_n, Vt_n : (n, 3) and (m, 3) float64
-        Source and target, each normalised (bounding box centred at the origin).
-
-    Returns
-    -------
-    (3,) float64
-        ``half_extent(target) / half_extent(source)`` per axis; 1 on an axis where
-        either shape is flat (below 1e-9 of its largest extent).
-
-    Examples
-    --------
-    >>> box_scale(np.array([[-1.0, -0.5, 0], [1, 0.5, 0]]), np.array([[-1.0, -1, 0], [1, 1, 0]]))
-    array([1., 2., 1.])
-    """
-    hs = 0.5 * np.ptp(Vs_n, axis=0)
-    ht = 0.5 * np.ptp(Vt_n, axis=0)
-    flat = (hs < 1e-9 * hs.max()) | (ht < 1e-9 * ht.max())
-    return np.where(flat, 1.0, ht / np.where(flat, 1.0, hs))
-
-
 # ------------------------------------------------------------------------------ energy
 
 
@@ -227,7 +200,6 @@ class CageEnergy:
         if symmetry is not None:
             self.partners = losses.mirror_partners(cage_ref, symmetry)
         self.W_landmarks, self.landmarks = W_landmarks, landmarks
-        self.evaluations = 0
 
     def evaluate(self, C):
         """Weighted energy, its gradient (k, 3) and each active term's unweighted value."""
@@ -265,54 +237,8 @@ class CageEnergy:
 
     def __call__(self, C):
         """Weighted energy and its gradient, shape (k, 3)."""
-        self.evaluations += 1
         energy, grad, _ = self.evaluate(C)
         return energy, grad
-
-
-def _minimise(energy: CageEnergy, C0, max_evaluations, tolerance, progress=None):
-    """nlopt L-BFGS from ``C0``; returns the best cage seen (restarted once when stuck).
-
-    nlopt ends a run with an exception when the line search fails (at a nearest-neighbour
-    switch of the Chamfer term, typically); the best point seen is kept and the run is
-    restarted from it once. An error raised by the energy itself is re-raised.
-    """
-    shape = C0.shape
-    best = {"f": np.inf, "x": C0.ravel().copy()}
-    failure = []
-
-    def objective(x, grad):
-        try:
-            f, g = energy(x.reshape(shape))
-        except Exception as exc:  # noqa: BLE001 - handed back after nlopt returns
-            failure.append(exc)
-            raise nlopt.ForcedStop from exc
-        if grad.size:
-            grad[:] = g.ravel()
-        if progress is not None:
-            progress(energy.evaluations, max_evaluations)
-        if f < best["f"]:
-            best["f"], best["x"] = f, x.copy()
-        return f
-
-    budget = max_evaluations
-    for _ in range(2):
-        start = energy.evaluations
-        opt = nlopt.opt(nlopt.LD_LBFGS, C0.size)
-        opt.set_min_objective(objective)
-        opt.set_ftol_rel(tolerance)
-        opt.set_maxeval(max(budget, 1))
-        opt.set_vector_storage(10)
-        try:
-            opt.optimize(best["x"].copy())
-            break  # converged (tolerance) or out of evaluations
-        except Exception:  # noqa: BLE001 - nlopt's roundoff / failure: keep the best point
-            if failure:
-                raise failure[0] from None
-        budget -= energy.evaluations - start
-        if budget <= 0:
-            break
-    return best["x"].reshape(shape)
 
 
 # -------------------------------------------------------------------------- the methods
@@ -408,10 +334,11 @@ def _cage_method(Vs_n, Fs, Vt_n, Ft, cage_n, cage_f, weights, symmetry, lm, samp
     # fine: the full energy, from the boxes or from a given deformed cage
     C0 = C_box if C_start is None else C_start
     start, _, _ = energy.evaluate(C0)
-    C = _minimise(energy, C0, max_evaluations, tolerance, progress)
+    minimum = minimise(energy, C0, max_evaluations, tolerance, progress)
+    C = minimum.x
     total, _, terms = energy.evaluate(C)
     return (W_vertices @ C, binding.cage_v, binding.cage_f, C, terms, (start, total),
-            energy.evaluations)
+            minimum.evaluations)
 
 
 def _nricp(Vs_box, Fs, Vt_n, Ft):

@@ -19,8 +19,9 @@ Decisions (ours, where the paper is silent)
 - **The aligned frame.** The novel character is first mapped onto the template by a
   similarity ``A`` (``q = A(q_a)``): ``"similarity"`` fits scale, rotation and translation
   to the landmarks (least squares, Umeyama), ``"box"`` matches the bounding-box centres
-  and heights of the two rest-pose meshes (:func:`box_alignment`, no rotation), or pass a
-  :class:`Similarity`. The fit starts from ``C_s`` in that frame and is solved there, and
+  and heights of the two rest-pose meshes (:func:`cagekit.alignment.box_alignment`, no
+  rotation), or pass a :class:`~cagekit.alignment.Similarity`. The fit starts from ``C_s``
+  in that frame and is solved there, and
   the result is mapped back with ``A``. Mean value coordinates are invariant under
   similarities, so the MVC term is the same in both frames, and the Laplacian term then
   compares like with like: a character that is a scaled, rotated and moved copy of the
@@ -48,126 +49,19 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from cagekit.alignment import Similarity, similarity_alignment
 from cagekit.cage import check_cage
 from cagekit.coords import bind as bind_numpy
-from cagekit.deformation import _minimise
 from cagekit.errors import InputError
 from cagekit.geometry import as_vertices, cotangent_laplacian
+from cagekit.optimize import minimise
 from cagekit_learn.coords import mean_value_coordinates
 from cagekit_learn.threads import one_thread
 
-__all__ = ["Similarity", "similarity_alignment", "box_alignment", "ConsistencyFit",
-           "consistency_loss", "fit_cage_by_consistency", "LAPLACIAN_WEIGHT"]
+__all__ = ["ConsistencyFit", "consistency_loss", "fit_cage_by_consistency", "LAPLACIAN_WEIGHT"]
 
 #: weight of the Laplacian-length term (the paper's 0.05)
 LAPLACIAN_WEIGHT = 0.05
-
-
-@dataclass(frozen=True)
-class Similarity:
-    """``x -> scale * rotation @ x + translation``.
-
-    Attributes
-    ----------
-    scale : float
-        Positive.
-    rotation : (3, 3) float64
-        A proper rotation.
-    translation : (3,) float64
-    """
-
-    scale: float
-    rotation: np.ndarray
-    translation: np.ndarray
-
-    @classmethod
-    def identity(cls) -> Similarity:
-        return cls(1.0, np.eye(3), np.zeros(3))
-
-    def apply(self, X) -> np.ndarray:
-        """(n, 3) points -> (n, 3) mapped points (float64)."""
-        return self.scale * np.asarray(X, dtype=np.float64) @ self.rotation.T + self.translation
-
-    def invert(self, Y) -> np.ndarray:
-        """The inverse map: (n, 3) -> (n, 3)."""
-        return (np.asarray(Y, dtype=np.float64) - self.translation) @ self.rotation / self.scale
-
-    def apply_vectors(self, D) -> np.ndarray:
-        """Displacements mapped by the linear part only: (n, 3) -> (n, 3)."""
-        return self.scale * np.asarray(D, dtype=np.float64) @ self.rotation.T
-
-    def to_dict(self) -> dict:
-        return {"scale": float(self.scale), "rotation": self.rotation.tolist(),
-                "translation": self.translation.tolist()}
-
-
-def similarity_alignment(P, Q) -> Similarity:
-    """The similarity ``A`` minimising ``sum_i |A(p_i) - q_i|**2`` (Umeyama 1991).
-
-    Parameters
-    ----------
-    P, Q : (n, 3) array_like of float
-        Matching points, n >= 3, not all collinear.
-
-    Returns
-    -------
-    Similarity
-        ``Q ≈ A.apply(P)``; the rotation is proper (no reflection).
-
-    Examples
-    --------
-    >>> P = np.array([[0., 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
-    >>> A = similarity_alignment(P, 2 * P + 1)
-    >>> round(A.scale, 12), A.translation.tolist()
-    (2.0, [1.0, 1.0, 1.0])
-    """
-    P, Q = as_vertices(P, "P"), as_vertices(Q, "Q")
-    if P.shape != Q.shape or len(P) < 3:
-        raise InputError(f"need matching (n, 3) point sets with n >= 3, got {P.shape} "
-                         f"and {Q.shape}")
-    mp, mq = P.mean(axis=0), Q.mean(axis=0)
-    Pc, Qc = P - mp, Q - mq
-    var = float((Pc ** 2).sum())
-    if var <= 0.0:
-        raise InputError("the landmarks all lie at one point: no scale can be fitted")
-    if np.linalg.svd(Pc, compute_uv=False)[1] <= 1e-9 * np.sqrt(var):
-        raise InputError("the landmarks are collinear: the rotation about their line "
-                         "cannot be fitted")
-    U, S, Vt = np.linalg.svd(Qc.T @ Pc)
-    D = np.eye(3)
-    D[2, 2] = np.sign(np.linalg.det(U @ Vt)) or 1.0
-    R = U @ D @ Vt
-    scale = float((S * np.diag(D)).sum() / var)
-    if scale <= 0.0:
-        raise InputError("the target landmarks are degenerate: no similarity fits them")
-    return Similarity(scale, R, mq - scale * R @ mp)
-
-
-def box_alignment(source_v, target_v, up: int = 1) -> Similarity:
-    """Match bounding-box centres and heights: no rotation.
-
-    Parameters
-    ----------
-    source_v, target_v : (n, 3), (m, 3) array_like of float
-        Vertices of the two rest-pose meshes.
-    up : int, default 1
-        The height axis (y).
-
-    Returns
-    -------
-    Similarity
-        Scale = target height / source height along ``up``; the source's bounding-box
-        centre goes to the target's.
-    """
-    S, T = as_vertices(source_v, "source_v"), as_vertices(target_v, "target_v")
-    hs = float(np.ptp(S[:, up]))
-    ht = float(np.ptp(T[:, up]))
-    if hs <= 0.0 or ht <= 0.0:
-        raise InputError("a mesh has zero height: cannot align by height")
-    scale = ht / hs
-    cs = (S.min(axis=0) + S.max(axis=0)) / 2
-    ct = (T.min(axis=0) + T.max(axis=0)) / 2
-    return Similarity(scale, np.eye(3), ct - scale * cs)
 
 
 @dataclass
@@ -216,7 +110,7 @@ class ConsistencyFit:
 
 
 class _ConsistencyEnergy:
-    """``L_consistency`` and its gradient for nlopt (the interface of ``_minimise``)."""
+    """``L_consistency`` and its gradient for nlopt (for :func:`cagekit.optimize.minimise`)."""
 
     def __init__(self, phi_p, Qa, cage_f, lap, lap_norms, weight):
         self.phi_p = torch.as_tensor(phi_p, dtype=torch.float64)
@@ -225,7 +119,6 @@ class _ConsistencyEnergy:
         self.lap = torch.as_tensor(lap, dtype=torch.float64)
         self.lap_norms = torch.as_tensor(lap_norms, dtype=torch.float64)
         self.weight = float(weight)
-        self.evaluations = 0
 
     def terms(self, C):
         W = mean_value_coordinates(self.Qa, C, self.cage_f)
@@ -241,7 +134,6 @@ class _ConsistencyEnergy:
         return mvc + self.weight * lap, mvc, lap
 
     def __call__(self, C):
-        self.evaluations += 1
         Ct = torch.tensor(np.asarray(C, dtype=np.float64), requires_grad=True)
         mvc, lap = self.terms(Ct)
         total = mvc + self.weight * lap
@@ -308,7 +200,8 @@ def fit_cage_by_consistency(cage_v, cage_f, source_landmarks, target_landmarks, 
         The character's matching landmarks ``q`` (row i matches row i).
     alignment : {"similarity", "none"} or Similarity, default "similarity"
         Template frame -> character frame (see the module docstring); ``"none"`` is the
-        identity. :func:`box_alignment` gives the bounding-box-and-height alignment.
+        identity. :func:`cagekit.alignment.box_alignment` gives the bounding-box-and-height
+        alignment.
     init : (k, 3) array_like of float, optional
         Starting cage in the *character's* frame; default ``C_s`` mapped by the alignment.
     laplacian_weight : float, default 0.05
@@ -364,7 +257,11 @@ def fit_cage_by_consistency(cage_v, cage_f, source_landmarks, target_landmarks, 
         raise InputError(f"init must have the cage's shape {cage_v.shape}, got {C0.shape}")
     with one_thread():
         initial = energy.value(C0)[0]
-        C = C0 if initial == 0.0 else _minimise(energy, C0, int(max_evaluations), 1e-9)
+        evaluations = 0
+        C = C0
+        if initial != 0.0:
+            minimum = minimise(energy, C0, int(max_evaluations), 1e-9)
+            C, evaluations = minimum.x, minimum.evaluations
         loss, mvc, lap = energy.value(C)
     if loss > initial:  # never worse than the start
         C, loss, mvc, lap = C0, *energy.value(C0)
@@ -376,4 +273,4 @@ def fit_cage_by_consistency(cage_v, cage_f, source_landmarks, target_landmarks, 
         initial_loss=initial, converged=bool(loss < tolerance), tolerance=float(tolerance),
         landmark_errors=np.linalg.norm(energy.phi_p.numpy() @ cage_out - Q, axis=1),
         coordinate_residuals=np.linalg.norm(energy.phi_p.numpy() - phi_q, axis=1),
-        alignment=A, evaluations=energy.evaluations, seconds=time.perf_counter() - start)
+        alignment=A, evaluations=evaluations, seconds=time.perf_counter() - start)

@@ -44,6 +44,8 @@ import numpy as np
 import torch
 from torch import nn
 
+from cagekit_learn.alignment import box_scale
+
 __all__ = ["ModelConfig", "PointNetEncoder", "VertexDecoder", "NeuralCages", "NC_VARIANTS"]
 
 NC_VARIANTS = ("learned", "identity", "source-invariant")
@@ -167,23 +169,6 @@ class VertexDecoder(nn.Module):
         return self.layers(rows.transpose(1, 2)).transpose(1, 2)
 
 
-def half_extents(points: torch.Tensor) -> torch.Tensor:
-    """(B, P, 3) -> (B, 3) half the bounding box's size per axis."""
-    return 0.5 * (points.amax(dim=1) - points.amin(dim=1))
-
-
-def box_ratio(source: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
-    """Per-axis ratio of the target's to the source's half-extents, (B, 3), no gradient.
-
-    An axis on which either cloud is flat (below 1e-6 of its largest half-extent) keeps 1.
-    """
-    with torch.no_grad():
-        hs, ht = half_extents(source), half_extents(target)
-        flat = (hs < 1e-6 * hs.amax(dim=1, keepdim=True)) | (
-            ht < 1e-6 * ht.amax(dim=1, keepdim=True))
-        return torch.where(flat, torch.ones_like(hs), ht / torch.where(flat, 1.0, hs))
-
-
 class NeuralCages(nn.Module):
     """N_c and N_d with a shared encoder.
 
@@ -280,6 +265,6 @@ class NeuralCages(nn.Module):
         code_s = self.encoder(source)
         code_t = self.encoder(target)
         cage = self.source_cage(source, code_s)
-        start = cage * box_ratio(source, target)[:, None, :] if self.config.box_align else cage
+        start = cage * box_scale(source, target)[:, None, :] if self.config.box_align else cage
         offsets = self.nd_decoder(start, torch.cat([code_s, code_t], dim=1))
         return {"source_cage": cage, "deformed_cage": start + offsets}

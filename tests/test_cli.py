@@ -3,46 +3,10 @@
 import json
 import os
 import shutil
-import subprocess
-import sys
 
 import numpy as np
 import pytest
-
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-EXAMPLE = os.path.join(ROOT, "data", "example")
-SHAPE = os.path.join(EXAMPLE, "shape.obj")
-CAGE = os.path.join(EXAMPLE, "cage.obj")
-DEFORMED = os.path.join(EXAMPLE, "cage_deformed.obj")
-
-
-def cagekit(*args, cwd=None, stderr=subprocess.PIPE):
-    """Run ``python -m cagekit.cli ARGS``; return the CompletedProcess (text mode)."""
-    env = dict(os.environ)
-    env.pop("CAGEKIT_DEBUG", None)
-    env["PYTHONPATH"] = ROOT + os.pathsep + env.get("PYTHONPATH", "")
-    return subprocess.run(
-        [sys.executable, "-m", "cagekit.cli", *map(str, args)],
-        stdout=subprocess.PIPE, stderr=stderr, text=True, cwd=cwd, env=env, timeout=300,
-        check=False,
-    )
-
-
-def load_obj(path):
-    from cagekit.io import load_mesh
-
-    return load_mesh(path)
-
-
-def assert_bad_input(result, *names):
-    """Exit 2, exactly one line on stderr naming the file(s), no traceback, no stdout."""
-    assert result.returncode == 2, (result.returncode, result.stderr)
-    lines = result.stderr.strip().splitlines()
-    assert len(lines) == 1, result.stderr
-    assert "Traceback" not in result.stderr
-    for name in names:
-        assert str(name) in lines[0], (name, lines[0])
-    assert result.stdout == ""
+from builders import CAGE, DEFORMED, SHAPE, assert_bad_input, cagekit, load_obj
 
 
 @pytest.fixture(scope="module")

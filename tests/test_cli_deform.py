@@ -4,7 +4,7 @@ import json
 
 import numpy as np
 import pytest
-from test_cli import assert_bad_input, cagekit, load_obj
+from builders import assert_bad_input, cagekit, load_obj
 
 from cagekit.io import save_landmarks, save_mesh
 

@@ -9,7 +9,7 @@ import time
 
 import numpy as np
 import pytest
-from test_cli import CAGE, ROOT, SHAPE, assert_bad_input, cagekit
+from builders import CAGE, ROOT, SHAPE, assert_bad_input, cagekit
 
 from cagekit import io
 from cagekit.shapes import box_cage

@@ -5,22 +5,16 @@ import pytest
 
 pytest.importorskip("torch")
 
+from builders import random_rotation  # noqa: E402
+
+from cagekit.alignment import Similarity  # noqa: E402
 from cagekit.errors import InputError  # noqa: E402
 from cagekit.shapes import icosphere_cage  # noqa: E402
 from cagekit_learn.consistency import (  # noqa: E402
-    Similarity,
     _energy,
-    box_alignment,
     consistency_loss,
     fit_cage_by_consistency,
-    similarity_alignment,
 )
-
-
-def _rotation(seed):
-    q, r = np.linalg.qr(np.random.default_rng(seed).normal(size=(3, 3)))
-    q = q * np.sign(np.diag(r))
-    return q if np.linalg.det(q) > 0 else -q
 
 
 @pytest.fixture(scope="module")
@@ -34,7 +28,7 @@ def setup():
 
 def test_similarity_copy_gets_the_similarity_of_the_cage_back(setup):
     cage_v, cage_f, p = setup
-    A = Similarity(1.7, _rotation(3), np.array([0.5, -2.0, 3.0]))
+    A = Similarity(1.7, random_rotation(3), np.array([0.5, -2.0, 3.0]))
     fit = fit_cage_by_consistency(cage_v, cage_f, p, A.apply(p))
     np.testing.assert_allclose(fit.cage_v, A.apply(cage_v), atol=1e-9)
     assert fit.loss < 1e-20 and fit.converged
@@ -44,7 +38,7 @@ def test_similarity_copy_gets_the_similarity_of_the_cage_back(setup):
 
 def test_fit_recovers_the_similarity_from_a_perturbed_start(setup):
     cage_v, cage_f, p = setup
-    A = Similarity(0.6, _rotation(5), np.array([1.0, 0.0, -1.0]))
+    A = Similarity(0.6, random_rotation(5), np.array([1.0, 0.0, -1.0]))
     noise = np.random.default_rng(1).normal(scale=0.05, size=cage_v.shape)
     init = A.apply(cage_v + noise)
     fit = fit_cage_by_consistency(cage_v, cage_f, p, A.apply(p), init=init,
@@ -96,21 +90,6 @@ def test_consistency_loss_is_zero_for_the_template_itself(setup):
     assert consistency_loss(cage_v, cage_f, p, cage_v, p)["loss"] < 1e-28
 
 
-def test_similarity_alignment_and_box_alignment():
-    rng = np.random.default_rng(4)
-    P = rng.normal(size=(10, 3))
-    A = Similarity(2.5, _rotation(7), np.array([1.0, 2.0, 3.0]))
-    B = similarity_alignment(P, A.apply(P))
-    np.testing.assert_allclose(B.rotation, A.rotation, atol=1e-12)
-    np.testing.assert_allclose(B.apply(P), A.apply(P), atol=1e-12)
-    np.testing.assert_allclose(B.invert(B.apply(P)), P, atol=1e-12)
-    S = np.array([[0, 0, 0], [1, 2, 1.0]])
-    T = np.array([[5, 1, 0], [7, 5, 2.0]])
-    box = box_alignment(S, T)
-    assert box.scale == pytest.approx(2.0)
-    np.testing.assert_allclose(box.apply([[0.5, 1, 0.5]]), [[6, 3, 1]])
-
-
 @pytest.mark.parametrize("n, message", [(3, "at least 4"), (0, "no points")])
 def test_too_few_landmarks(setup, n, message):
     cage_v, cage_f, p = setup
@@ -130,8 +109,3 @@ def test_bad_arguments(setup):
         fit_cage_by_consistency(cage_v, cage_f, p, bad)
     with pytest.raises(InputError, match="init"):
         fit_cage_by_consistency(cage_v, cage_f, p, p, init=cage_v[:-1])
-    with pytest.raises(InputError, match="one point"):
-        similarity_alignment(np.zeros((5, 3)), np.ones((5, 3)))
-    line = np.outer(np.arange(5.0), [1.0, 2.0, 0.5])
-    with pytest.raises(InputError, match="collinear"):
-        similarity_alignment(line, 2 * line)

@@ -5,7 +5,7 @@ import pytest
 import trimesh
 
 import cagekit
-from cagekit.deformation import DEFAULT_WEIGHTS, CageEnergy, box_scale
+from cagekit.deformation import DEFAULT_WEIGHTS, CageEnergy
 from cagekit.errors import InputError
 from cagekit.losses import mirror
 from cagekit.metrics import chamfer_distance, dcotlap, evaluate
@@ -228,8 +228,6 @@ def test_scale_baseline_maps_bounding_boxes(blob):
     np.testing.assert_allclose(result.vertices.min(axis=0), target.min(axis=0), atol=1e-12)
     np.testing.assert_allclose(result.vertices.max(axis=0), target.max(axis=0), atol=1e-12)
     assert result.cage_v is None and result.iterations == 0
-    flat = np.array([[-1.0, -1, 0], [1, 1, 0]])
-    np.testing.assert_allclose(box_scale(flat, flat * 2), [2.0, 2.0, 1.0])
 
 
 def test_nricp_baseline_runs(blob):

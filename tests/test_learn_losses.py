@@ -9,9 +9,9 @@ identities.
 import numpy as np
 import pytest
 import torch
+from builders import icosphere, nn_margin
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from test_losses import icosphere, nn_margin  # shared test helpers
 
 from cagekit import losses as npl
 from cagekit.errors import InputError

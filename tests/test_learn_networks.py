@@ -6,11 +6,11 @@ import pytest
 torch = pytest.importorskip("torch")
 
 from cagekit.fitting import template_cage  # noqa: E402
+from cagekit_learn.alignment import box_scale  # noqa: E402
 from cagekit_learn.networks import (  # noqa: E402
     ModelConfig,
     NeuralCages,
     PointNetEncoder,
-    box_ratio,
 )
 
 
@@ -42,16 +42,10 @@ def test_untrained_model_predicts_the_template_and_its_box_aligned_stretch():
     expected = torch.as_tensor(v * 1.5, dtype=torch.float32)
     assert torch.equal(model.cage_f, torch.as_tensor(f))
     assert torch.allclose(out["source_cage"], expected.expand(3, -1, -1))
-    ratio = box_ratio(s, t)
+    ratio = box_scale(s, t)
     assert torch.allclose(out["deformed_cage"], expected * ratio[:, None, :])
     plain = NeuralCages(ModelConfig(bottleneck=16, box_align=False))(s, t)
     assert torch.allclose(plain["deformed_cage"], plain["source_cage"])
-
-
-def test_box_ratio_maps_half_extents_and_keeps_flat_axes():
-    s = torch.tensor([[[-1.0, -0.5, 0.0], [1.0, 0.5, 0.0]]])
-    t = torch.tensor([[[-0.5, -1.0, -1.0], [0.5, 1.0, 1.0]]])
-    assert box_ratio(s, t).tolist() == [[0.5, 2.0, 1.0]]
 
 
 def test_learned_nc_depends_on_the_source_and_nd_on_the_target():

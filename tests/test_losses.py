@@ -5,7 +5,7 @@ import warnings
 import numpy as np
 import pytest
 import scipy.sparse
-import trimesh
+from builders import icosphere, nn_margin
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from scipy.spatial import cKDTree
@@ -61,22 +61,6 @@ def assert_grad(loss, X, h=H, rtol=RTOL):
     err = np.abs(num - grad).max()
     assert err <= rtol * scale, f"gradient error {err:.3g} vs max |grad| {scale:.3g}"
     return value, grad
-
-
-def nn_margin(P, Q):
-    """Smallest gap between the nearest and second-nearest distance, both directions."""
-    margins = []
-    for A, B in ((P, Q), (Q, P)):
-        if len(B) < 2:
-            continue
-        d, _ = cKDTree(B).query(A, k=2)
-        margins.append((d[:, 1] - d[:, 0]).min())
-    return min(margins, default=np.inf)
-
-
-def icosphere(subdivisions=2):
-    m = trimesh.creation.icosphere(subdivisions=subdivisions)
-    return np.asarray(m.vertices, dtype=float), np.asarray(m.faces, dtype=np.int64)
 
 
 def rest_shape(seed=0, subdivisions=2):

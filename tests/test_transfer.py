@@ -12,10 +12,10 @@ from click.testing import CliRunner  # noqa: E402
 from apps import deformation_transfer as dt  # noqa: E402
 from apps import humanoid_data  # noqa: E402
 from cagekit import io  # noqa: E402
+from cagekit.alignment import Similarity  # noqa: E402
 from cagekit.coords import bind  # noqa: E402
 from cagekit.datasets import humanoid  # noqa: E402
 from cagekit.errors import InputError  # noqa: E402
-from cagekit_learn.consistency import Similarity  # noqa: E402
 
 
 @pytest.fixture(scope="module")
