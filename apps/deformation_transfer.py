@@ -75,8 +75,10 @@ from cagekit.coords import bind
 from cagekit.coords.binding import warn_outside
 from cagekit.deformation import deform
 from cagekit.errors import CagekitWarning, InputError
+from cagekit.files import atomic_output, output_folder
 from cagekit.frame import normalize
 from cagekit.geometry import as_vertices, cotangent_laplacian
+from cagekit.landmarks import LandmarkMatch, load_landmarks, match_landmarks
 
 __all__ = ["CharacterCage", "fit_character", "corresponds", "check_model",
            "check_fitted_cage", "template_cage_classical", "classical_fitter",
@@ -104,7 +106,7 @@ class CharacterCage:
         ``C_s'``, in the character's frame.
     cage_f : (f, 3) int64
     fit : cagekit_learn.consistency.ConsistencyFit
-    match : cagekit.io.LandmarkMatch
+    match : cagekit.landmarks.LandmarkMatch
     weights : (n, k) float64
         The character's mean value coordinates in ``C_s'``.
     """
@@ -115,7 +117,7 @@ class CharacterCage:
     cage_v: np.ndarray
     cage_f: np.ndarray
     fit: object
-    match: io.LandmarkMatch
+    match: LandmarkMatch
     weights: np.ndarray
 
 
@@ -148,7 +150,7 @@ def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
     from cagekit.alignment import box_alignment, similarity_alignment
     from cagekit_learn.consistency import fit_cage_by_consistency
 
-    match = io.match_landmarks(template_landmarks, character_landmarks,
+    match = match_landmarks(template_landmarks, character_landmarks,
                                source_name=template_name, target_name=character_name)
     cage_v = as_vertices(cage_v, "cage_v")
     cage_f = check_cage(cage_v, cage_f)
@@ -501,9 +503,9 @@ def main(template, template_cage, template_landmarks, character, character_landm
     cage_v, cage_f = io.load_mesh(template_cage)
     cage_f = check_cage(cage_v, cage_f, name=template_cage)
     warn_outside(Vt, cage_v, cage_f, shape=template, cage=template_cage)
-    marks_t = io.load_landmarks(template_landmarks)
+    marks_t = load_landmarks(template_landmarks)
     Vc, Fc = io.load_mesh(character)
-    marks_c = io.load_landmarks(character_landmarks)
+    marks_c = load_landmarks(character_landmarks)
     pose_meshes = [io.load_mesh(path) for path in pose_paths]  # every input read first
     model = None
     if model_path:
@@ -515,13 +517,9 @@ def main(template, template_cage, template_landmarks, character, character_landm
     char = fit_character(Vt, cage_v, cage_f, marks_t, Vc, Fc, marks_c, align=align,
                          max_evaluations=max_evaluations, template_name=template_landmarks,
                          character_name=character_landmarks)
-    for label_set, where in ((char.match.source_only, template_landmarks),
-                             (char.match.target_only, character_landmarks)):
-        if label_set:
-            more = " ..." if len(label_set) > 8 else ""
-            warnings.warn(CagekitWarning(
-                f"{len(label_set)} landmark(s) only in {where}, not used: "
-                f"{', '.join(label_set[:8])}{more}"), stacklevel=1)
+    unmatched = char.match.unmatched(template_landmarks, character_landmarks)
+    if unmatched:
+        warnings.warn(CagekitWarning(unmatched), stacklevel=1)
     cage_check = check_fitted_cage(char)
     for problem in cage_check["problems"]:
         warnings.warn(CagekitWarning(f"the fitted character cage {problem}"), stacklevel=1)
@@ -537,7 +535,7 @@ def main(template, template_cage, template_landmarks, character, character_landm
         else:
             deformed = template_cage_learned(model, Vt, cage_v, (Vp, Fp))
         results.append((transfer(char, deformed), time.perf_counter() - t0))
-    with io.output_folder(out):
+    with output_folder(out):
         rows = []
         for path, name, (X, seconds) in zip(pose_paths, names, results):
             io.save_mesh(out / name, X, char.faces)
@@ -569,7 +567,7 @@ def main(template, template_cage, template_landmarks, character, character_landm
         "outputs": {"cage": str(out / "character_cage.obj"),
                     "report": str(out / "report.json"), "grid": grid_path},
     }
-    with io.atomic_output(out / "report.json") as tmp, open(tmp, "w") as fh:
+    with atomic_output(out / "report.json") as tmp, open(tmp, "w") as fh:
         json.dump(report, fh, indent=2, allow_nan=False)
         fh.write("\n")
     if as_json:

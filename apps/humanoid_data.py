@@ -35,6 +35,8 @@ from cagekit import io
 from cagekit.cli import Command, FiniteFloatRange, _debug_option, _emit_json, _json_option
 from cagekit.datasets import humanoid
 from cagekit.errors import InputError
+from cagekit.files import atomic_output
+from cagekit.landmarks import save_landmarks
 
 __all__ = ["TEST_POSE_SEED", "landmark_names", "landmarks_of", "template_cage", "write"]
 
@@ -115,11 +117,11 @@ def write(out_dir, *, poses: int = 20, train_poses: int = 1000, seed: int = 0,
     io.save_mesh(out / "template.obj", template.vertices, F)
     cage_v, cage_f = template_cage(template.vertices, F, cage_faces, seed)
     io.save_mesh(out / "template_cage.obj", cage_v, cage_f)
-    io.save_landmarks(out / "template_landmarks.json", landmarks_of(template, names))
+    save_landmarks(out / "template_landmarks.json", landmarks_of(template, names))
     rigs = {body: humanoid.rig(body, resolution=resolution) for body in bodies}
     for body, rig in rigs.items():
         io.save_mesh(out / "characters" / f"{body}.obj", rig.vertices, F)
-        io.save_landmarks(out / "characters" / f"{body}_landmarks.json",
+        save_landmarks(out / "characters" / f"{body}_landmarks.json",
                           landmarks_of(rig, names))
     for i in range(poses):
         pose = humanoid.random_pose(TEST_POSE_SEED + i)
@@ -133,7 +135,7 @@ def write(out_dir, *, poses: int = 20, train_poses: int = 1000, seed: int = 0,
                "train_poses": train_poses, "landmarks": len(names),
                "template_vertices": len(template.vertices),
                "cage_vertices": len(cage_v), "cage_faces": len(cage_f), "seed": seed}
-    with io.atomic_output(out / "manifest.json") as tmp, open(tmp, "w") as fh:
+    with atomic_output(out / "manifest.json") as tmp, open(tmp, "w") as fh:
         json.dump(summary, fh, indent=2)
         fh.write("\n")
     return summary

@@ -42,6 +42,7 @@ from apps import deformation_transfer as dt  # noqa: E402
 from apps import humanoid_data  # noqa: E402
 from cagekit import io  # noqa: E402
 from cagekit.frame import normalize
+from cagekit.landmarks import load_landmarks  # noqa: E402
 from cagekit.metrics import dcotlap  # noqa: E402
 from cagekit_learn.train import load_model  # noqa: E402
 
@@ -108,7 +109,7 @@ def main(argv=None) -> dict:
 
     Vt, Ft = io.load_mesh(data / "template.obj")
     cage_v, cage_f = io.load_mesh(data / "template_cage.obj")
-    marks_t = io.load_landmarks(data / "template_landmarks.json")
+    marks_t = load_landmarks(data / "template_landmarks.json")
     manifest = json.loads((data / "manifest.json").read_text())
     bodies = manifest["bodies"]
     poses = sorted((data / "poses").glob("pose_*.obj"))[:args.poses]
@@ -131,7 +132,7 @@ def main(argv=None) -> dict:
     rows, fits, grid = [], {}, None
     for body in bodies:
         Vc, Fc = io.load_mesh(data / "characters" / f"{body}.obj")
-        marks_c = io.load_landmarks(data / "characters" / f"{body}_landmarks.json")
+        marks_c = load_landmarks(data / "characters" / f"{body}_landmarks.json")
         char = dt.fit_character(Vt, cage_v, cage_f, marks_t, Vc, Fc, marks_c)
         fit = char.fit
         fits[body] = {"seconds": fit.seconds, "loss": fit.loss, "mvc_term": fit.mvc_term,

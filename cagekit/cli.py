@@ -713,7 +713,8 @@ def synth(ctx, family, count, out, seed, fmt, resolution, as_json):
       cagekit synth chairs -n 10 -o chairs/ --seed 100
     """
     from cagekit.datasets.synthetic import FAMILIES
-    from cagekit.io import output_folder, save_mesh
+    from cagekit.files import output_folder
+    from cagekit.io import save_mesh
 
     _start(ctx)
     if os.path.exists(out) and not os.path.isdir(out):
@@ -820,20 +821,22 @@ def _deformed_cage_path(path: str) -> str:
 
 
 def _load_landmark_pair(src_path, tgt_path):
-    """Matching landmark positions of the two files, in the source file's label order."""
-    import numpy as np
+    """The positions of the labels both files share, in the source file's order.
 
-    from cagekit.io import load_landmarks
+    Labels in one file only (real files misspell a few) are left out, listed in one
+    warning line; fewer than 4 shared labels are refused.
+    """
+    import warnings
 
-    src, tgt = load_landmarks(src_path), load_landmarks(tgt_path)
-    missing = [label for label in src if label not in tgt]
-    extra = [label for label in tgt if label not in src]
-    if missing or extra:
-        what = (f"lacks the source's labels {', '.join(missing[:5])}" if missing
-                else f"has labels the source lacks: {', '.join(extra[:5])}")
-        raise InputError(f"{what}; both landmark files must name the same landmarks",
-                         tgt_path)
-    return (np.array([src[k] for k in src]), np.array([tgt[k] for k in src]))
+    from cagekit.errors import CagekitWarning
+    from cagekit.landmarks import load_landmarks, match_landmarks
+
+    match = match_landmarks(load_landmarks(src_path), load_landmarks(tgt_path),
+                            source_name=src_path, target_name=tgt_path)
+    unmatched = match.unmatched(src_path, tgt_path)
+    if unmatched:
+        warnings.warn(CagekitWarning(unmatched), stacklevel=2)
+    return match.source, match.target
 
 
 @main.command(short_help="Deform SOURCE to take TARGET's shape by moving its cage.")
@@ -857,8 +860,8 @@ def _load_landmark_pair(src_path, tgt_path):
               show_default=True, help="Axis normal to SOURCE's plane of symmetry.")
 @click.option("--landmarks", nargs=2, type=click.Path(dir_okay=False), default=None,
               metavar="SRC TGT",
-              help="Landmark files (.picked, .json, .csv) of SOURCE and TARGET with the "
-                   "same labels; they replace Chamfer as the alignment term.")
+              help="Landmark files (.picked, .json, .csv) of SOURCE and TARGET; the labels "
+                   "they share (4 at least) replace Chamfer as the alignment term.")
 @click.option("--weight", "weights", multiple=True, callback=_parse_weights,
               metavar="TERM=VALUE",
               help="Energy weight (repeatable): chamfer, landmarks, p2f, normal, "
@@ -1132,7 +1135,7 @@ def train(ctx, data, run_dir, epochs, batch_size, lr, device, resume, points, bo
         symmetry=None if symmetry == "none" else symmetry, align=align,
         augment=not no_augment, max_steps=max_steps, max_minutes=minutes,
         model=model.to_dict(), fixed_source=fixed_source)
-    from cagekit.io import output_folder
+    from cagekit.files import output_folder
 
     with output_folder(run_dir):  # a run that fails before writing leaves no empty folder
         result = run(config, resume=resume, progress=_progress_enabled())

@@ -1,10 +1,10 @@
-"""Reading and writing meshes, point clouds and landmarks.
+"""Reading and writing meshes and point clouds.
 
 Meshes come back as ``V`` (n, 3) float64 and ``F`` (m, 3) int64; a point cloud is a mesh with
-no faces. Every problem with a file raises :class:`~cagekit.errors.MeshFileError` or
-:class:`~cagekit.errors.LandmarkFileError` (both :class:`~cagekit.errors.InputError`) with one
-line that names the file and the problem; problems with arrays or destinations given to a
-``save_*`` function raise :class:`~cagekit.errors.InputError`.
+no faces. Every problem with a file raises :class:`~cagekit.errors.MeshFileError` (an
+:class:`~cagekit.errors.InputError`) with one line that names the file and the problem;
+problems with arrays or destinations given to a ``save_*`` function raise
+:class:`~cagekit.errors.InputError`.
 
 Decisions
 ---------
@@ -41,13 +41,7 @@ Decisions
 - **Writing** is exact where the format allows: OBJ, OFF, XYZ, TXT and PTS use ``%.17g`` so
   text round-trips bit for bit, PLY is binary little-endian with float64 coordinates and
   int32 indices, NPY is float64. STL and GLB store float32 by definition. Every file is
-  written atomically (see :func:`atomic_output`).
-- **Landmarks** load to a ``dict`` label -> (3,) float64 in file order. Labels are stripped
-  of surrounding whitespace; duplicate labels, non-numeric or non-finite values, wrong
-  column counts and empty files are errors. In ``.picked`` files the face, barycentric and
-  vertex columns must be numeric but are otherwise unused; the first column is not checked.
-  ``save_landmarks`` writes JSON or CSV only: a ``.picked`` row needs a face index and
-  barycentric coordinates that a label -> position mapping does not have.
+  written atomically (:func:`cagekit.files.atomic_output`).
 - **Quiet failures.** Any exception a parser raises becomes a one-line ``MeshFileError`` /
   ``LandmarkFileError``; a NullHandler on the ``trimesh`` logger stops trimesh from printing
   tracebacks on stderr through Python's last-resort handler.
@@ -55,37 +49,23 @@ Decisions
 
 from __future__ import annotations
 
-import contextlib
-import csv
-import json
 import logging
 import os
-import re
-import secrets
-import stat
 import struct
 import warnings
-from collections.abc import Iterator, Mapping
-from dataclasses import dataclass
 
 import numpy as np
 import trimesh
 
-from cagekit.errors import InputError, LandmarkFileError, MeshFileError, MeshFileWarning
+from cagekit.errors import InputError, MeshFileError, MeshFileWarning
+from cagekit.files import atomic_output, check_file, extension, one_line, read_bytes, read_text
 
 __all__ = [
-    "SUPPORTED_LANDMARK_EXTENSIONS",
     "SUPPORTED_MESH_EXTENSIONS",
     "SUPPORTED_POINT_EXTENSIONS",
-    "atomic_output",
-    "load_landmarks",
     "load_mesh",
     "load_points",
     "load_shape",
-    "LandmarkMatch",
-    "output_folder",
-    "match_landmarks",
-    "save_landmarks",
     "save_mesh",
     "save_points",
 ]
@@ -94,8 +74,6 @@ SUPPORTED_MESH_EXTENSIONS = (".obj", ".ply", ".off", ".stl", ".glb", ".gltf")
 """Extensions :func:`load_mesh` reads (:func:`save_mesh` writes all but ``.gltf``)."""
 SUPPORTED_POINT_EXTENSIONS = (".ply", ".xyz", ".pts", ".txt", ".npy")
 """Point-cloud extensions :func:`load_shape` reads and :func:`save_points` writes."""
-SUPPORTED_LANDMARK_EXTENSIONS = (".picked", ".json", ".csv")
-"""Extensions :func:`load_landmarks` reads (:func:`save_landmarks` writes JSON and CSV)."""
 
 _NO_FACES = np.empty((0, 3), dtype=np.int64)
 
@@ -136,7 +114,7 @@ def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     >>> V.shape[1], F.shape[1], V.dtype, F.dtype  # doctest: +SKIP
     (3, 3, dtype('float64'), dtype('int64'))
     """
-    ext = _extension(path)
+    ext = extension(path)
     if ext not in SUPPORTED_MESH_EXTENSIONS:
         kind = "is a point-cloud format" if ext in SUPPORTED_POINT_EXTENSIONS else "is not known"
         raise MeshFileError(
@@ -178,7 +156,7 @@ def load_shape(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     >>> F.shape  # doctest: +SKIP
     (0, 3)
     """
-    ext = _extension(path)
+    ext = extension(path)
     if ext not in _READERS:
         known = ", ".join(sorted(_READERS))
         raise MeshFileError(f"unknown extension {ext or '(none)'!r}; supported: {known}", path)
@@ -214,7 +192,7 @@ def _load(path, ext):
     except InputError:
         raise
     except Exception as exc:  # any parser failure is a property of the file
-        raise MeshFileError(f"cannot be read as {kind}: {_one_line(exc)}", path) from exc
+        raise MeshFileError(f"cannot be read as {kind}: {one_line(exc)}", path) from exc
     return _checked(V, F, path)
 
 
@@ -235,44 +213,6 @@ def _checked(V, F, path):
             path,
         )
     return V, F
-
-
-def _extension(path) -> str:
-    return os.path.splitext(os.fspath(path))[1].lower()
-
-
-def _one_line(exc: BaseException) -> str:
-    text = " ".join(str(exc).split()) or type(exc).__name__
-    return text if len(text) <= 200 else text[:197] + "..."
-
-
-def _check_file(path, error=MeshFileError) -> None:
-    if os.path.isdir(path):
-        raise error("is a directory, not a file", path)
-    try:
-        size = os.stat(path).st_size
-    except FileNotFoundError:
-        raise error("no such file", path) from None
-    except OSError as exc:
-        raise error(f"cannot be read: {exc.strerror or exc}", path) from None
-    if size == 0:
-        raise error("is empty", path)
-
-
-def _read_bytes(path, error=MeshFileError) -> bytes:
-    _check_file(path, error)
-    try:
-        with open(path, "rb") as fh:
-            data = fh.read()
-    except OSError as exc:
-        raise error(f"cannot be read: {exc.strerror or exc}", path) from None
-    if not data.strip():
-        raise error("is empty", path)
-    return data
-
-
-def _read_text(path, error=MeshFileError) -> str:
-    return _read_bytes(path, error).decode("utf-8-sig", errors="replace")
 
 
 def _triangulate(flat, sizes, n_vertices, path, lines=None, base=0) -> np.ndarray:
@@ -340,7 +280,7 @@ def _int_table(rows):
 
 
 def _read_obj(path):
-    text = _read_text(path)
+    text = read_text(path, MeshFileError)
     rows, v_lines, faces, f_lines, f_seen = [], [], [], [], []
     pending = ""
     for number, line in enumerate(text.splitlines(), 1):
@@ -387,7 +327,7 @@ def _read_obj(path):
 
 
 def _read_off(path):
-    text = _read_text(path)
+    text = read_text(path, MeshFileError)
     lines = [(n, line.split("#", 1)[0].split()) for n, line in enumerate(text.splitlines(), 1)]
     lines = [(n, tokens) for n, tokens in lines if tokens]
     if not lines:
@@ -552,7 +492,7 @@ def _ply_binary_element(data, pos, count, props, endian):
 
 
 def _read_ply(path):
-    data = _read_bytes(path)
+    data = read_bytes(path, MeshFileError)
     fmt, elements, pos = _ply_header(data, path)
     if fmt == "ascii":
         body = data[pos:].decode("ascii", errors="replace").split()
@@ -587,9 +527,9 @@ def _read_ply(path):
 
 
 def _read_with_trimesh(path):
-    _check_file(path)
+    check_file(path, MeshFileError)
     loaded = trimesh.load(
-        os.fspath(path), file_type=_extension(path)[1:], process=False, maintain_order=True
+        os.fspath(path), file_type=extension(path)[1:], process=False, maintain_order=True
     )
     parts = loaded.dump() if isinstance(loaded, trimesh.Scene) else [loaded]
     meshes = [g for g in parts if isinstance(g, trimesh.Trimesh) and len(g.faces)]
@@ -600,7 +540,7 @@ def _read_with_trimesh(path):
     offsets = np.cumsum([0] + [len(m.vertices) for m in meshes])
     V = np.concatenate([np.asarray(m.vertices, dtype=np.float64) for m in meshes])
     F = np.concatenate([np.asarray(m.faces, dtype=np.int64) + o for m, o in zip(meshes, offsets)])
-    if _extension(path) == ".stl":  # a triangle soup: merge identical corners, first seen first
+    if extension(path) == ".stl":  # a triangle soup: merge identical corners, first seen first
         _, first, inverse = np.unique(V + 0.0, axis=0, return_index=True, return_inverse=True)
         order = np.argsort(first)
         rank = np.empty_like(order)
@@ -610,7 +550,7 @@ def _read_with_trimesh(path):
 
 
 def _read_xyz(path):
-    text = _read_text(path)
+    text = read_text(path, MeshFileError)
     rows, lines = [], []
     for number, line in enumerate(text.splitlines(), 1):
         line = line.strip()
@@ -634,7 +574,7 @@ def _read_xyz(path):
 
 
 def _read_npy(path):
-    _check_file(path)
+    check_file(path, MeshFileError)
     array = np.load(os.fspath(path), allow_pickle=False)
     if not isinstance(array, np.ndarray):
         raise MeshFileError("holds several arrays; one (n, 3) array is required", path)
@@ -664,213 +604,6 @@ _READERS = {
 # ----------------------------------------------------------------------------- saving
 
 
-@contextlib.contextmanager
-def output_folder(path: str | os.PathLike) -> Iterator[str]:
-    """Make a folder for a command's outputs; if the block fails, remove what it made.
-
-    The folder and its missing parents are created; when the block raises (an error, an
-    interrupt), each folder this call created is removed again if it is still empty, so a
-    failed run leaves no empty folder behind. A folder that existed before is left alone.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-
-    Yields
-    ------
-    str
-        The folder's absolute path.
-
-    Raises
-    ------
-    InputError
-        The path (or a parent) is a regular file, or the folder cannot be created
-        (read-only file system, no permission).
-
-    Examples
-    --------
-    >>> with output_folder("out/shapes") as folder:  # doctest: +SKIP
-    ...     save_mesh(os.path.join(folder, "a.obj"), V, F)
-    """
-    target = os.path.abspath(os.fspath(path))
-    missing = []
-    probe = target
-    while not os.path.lexists(probe):
-        missing.append(probe)
-        probe = os.path.dirname(probe)
-    if not os.path.isdir(probe):
-        raise InputError(f"cannot make the folder: {probe} is not a folder", path)
-    try:
-        os.makedirs(target, exist_ok=True)
-    except OSError as exc:
-        raise InputError(f"cannot make the folder: {exc.strerror or exc}", path) from None
-    try:
-        yield target
-    except BaseException:
-        for folder in missing:  # deepest first
-            with contextlib.suppress(OSError):
-                os.rmdir(folder)
-        raise
-
-
-#: folders whose stale temporaries this process has removed (once per folder and process)
-_SWEPT: set[str] = set()
-
-#: temporary names: ``.<name>.tmp-<8 hex><ext>`` (being written, locked) and
-#: ``.<name>.new-<8 hex><ext>`` (just created, about to be locked and renamed)
-_TEMPORARY = re.compile(r"^\..*\.(tmp|new)-[0-9a-f]{8}(\.[^.]*)?$")
-
-
-@contextlib.contextmanager
-def atomic_output(path: str | os.PathLike) -> Iterator[str]:
-    """Write a file atomically: yield a temporary path, then rename it to ``path``.
-
-    The temporary file ``.<name>.tmp-<8 hex digits><ext>`` is created (empty) in the
-    destination's folder with the same extension, so writers that pick a format from the
-    extension work. When the block succeeds the file is fsynced and renamed over ``path``
-    with ``os.replace`` (keeping the mode of a file it replaces); when the block raises, it
-    is removed and ``path`` is left untouched.
-
-    A process killed while writing (SIGKILL, a power cut) cannot remove its temporary file.
-    So the temporary file is locked (``flock``) for as long as it exists under that name (it
-    is created as ``.<name>.new-...``, locked, then renamed, which keeps the lock), and the
-    first write into a folder in a process removes the folder's unlocked temporary files:
-    what dead writers left behind (``.new-`` ones only when older than a minute). A live
-    writer's file is locked and stays. On file systems whose ``flock`` is emulated or absent
-    (some NFS set-ups) nothing is ever taken for stale.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-        The final destination. Its folder must exist.
-
-    Yields
-    ------
-    str
-        The temporary path to write to.
-
-    Raises
-    ------
-    InputError
-        ``path`` is a directory, its folder does not exist or cannot be written.
-
-    Examples
-    --------
-    >>> with atomic_output("out/preview.png") as tmp:  # doctest: +SKIP
-    ...     figure.savefig(tmp)
-    """
-    target = os.path.abspath(os.fspath(path))
-    folder, name = os.path.split(target)
-    if os.path.isdir(target):
-        raise InputError("is a directory; cannot write a file there", path)
-    if not os.path.isdir(folder):
-        raise InputError(f"cannot write: folder {folder} does not exist", path)
-    if folder not in _SWEPT:
-        _remove_stale_temporaries(folder)
-        _SWEPT.add(folder)
-    root, ext = os.path.splitext(name)
-    while True:
-        token = secrets.token_hex(4)
-        fresh = os.path.join(folder, f".{root}.new-{token}{ext}")
-        tmp = os.path.join(folder, f".{root}.tmp-{token}{ext}")
-        try:
-            lock = os.open(fresh, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
-        except FileExistsError:
-            continue
-        except OSError as exc:
-            raise InputError(f"cannot write: {exc.strerror or exc}", path) from None
-        if os.path.lexists(tmp):  # a name clash: try another token
-            os.close(lock)
-            os.remove(fresh)
-            continue
-        break
-    try:
-        _lock(lock, blocking=True)
-        os.rename(fresh, tmp)  # the same inode, still locked: never unlocked under .tmp-
-        try:
-            yield tmp
-            _fsync_written(tmp, lock)
-            with contextlib.suppress(OSError):
-                os.chmod(tmp, stat.S_IMODE(os.stat(target).st_mode))
-            os.replace(tmp, target)
-        except BaseException:
-            with contextlib.suppress(OSError):
-                os.remove(tmp)
-            raise
-    finally:
-        with contextlib.suppress(OSError):
-            os.remove(fresh)  # only there if the rename failed
-        os.close(lock)
-    with contextlib.suppress(OSError):  # make the rename itself durable (POSIX)
-        fd = os.open(folder, os.O_RDONLY)
-        try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
-
-
-def _fsync_written(tmp: str, lock: int) -> None:
-    """fsync what was written to ``tmp``: through the lock's descriptor when it is still
-    the same file (opening and closing another descriptor would drop an emulated lock)."""
-    if os.fstat(lock).st_ino == os.stat(tmp).st_ino:
-        os.fsync(lock)
-        return
-    fd = os.open(tmp, os.O_RDONLY)  # the writer replaced the file
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-
-
-def _lock(fd: int, blocking: bool) -> bool:
-    """An exclusive ``flock`` on ``fd``; False if another process holds one (non-blocking).
-
-    Where ``fcntl`` is missing (not POSIX) or the file system has no locks, nothing is
-    locked and False is returned, so that no temporary file is ever taken for stale there.
-    """
-    try:
-        import fcntl
-    except ImportError:
-        return False
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | (0 if blocking else fcntl.LOCK_NB))
-    except OSError:  # held by another process, or no locks on this file system
-        return False
-    return True
-
-
-def _remove_stale_temporaries(folder: str) -> None:
-    """Remove the unlocked temporary files in ``folder`` (what dead writers left)."""
-    import time
-
-    try:
-        names = [n for n in os.listdir(folder) if n.startswith(".") and _TEMPORARY.match(n)]
-    except OSError:
-        return
-    for stale in names:
-        candidate = os.path.join(folder, stale)
-        try:
-            info = os.lstat(candidate)
-        except OSError:
-            continue
-        if not stat.S_ISREG(info.st_mode):  # a link, a FIFO, a folder: not ours
-            continue
-        if ".new-" in stale and time.time() - info.st_mtime < 60:
-            continue  # being created right now, about to be locked
-        try:
-            fd = os.open(candidate, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOFOLLOW", 0))
-        except OSError:
-            continue
-        try:
-            opened = os.fstat(fd)
-            same = (opened.st_ino, opened.st_dev) == (info.st_ino, info.st_dev)
-            if same and stat.S_ISREG(opened.st_mode) and _lock(fd, blocking=False):
-                with contextlib.suppress(OSError):
-                    os.remove(candidate)
-        finally:
-            os.close(fd)
-
-
 def save_mesh(path: str | os.PathLike, V, F) -> None:
     """Write a triangle mesh atomically, the format chosen by the extension.
 
@@ -896,10 +629,10 @@ def save_mesh(path: str | os.PathLike, V, F) -> None:
     >>> load_mesh("tri.obj")[1]  # doctest: +SKIP
     array([[0, 1, 2]])
     """
-    writer = _MESH_WRITERS.get(_extension(path))
+    writer = _MESH_WRITERS.get(extension(path))
     if writer is None:
         raise InputError(
-            f"cannot write meshes as {_extension(path) or '(no extension)'!r}; "
+            f"cannot write meshes as {extension(path) or '(no extension)'!r}; "
             f"use one of {', '.join(_MESH_WRITERS)}",
             path,
         )
@@ -929,10 +662,10 @@ def save_points(path: str | os.PathLike, V) -> None:
     --------
     >>> save_points("cloud.xyz", np.random.default_rng(0).random((100, 3)))  # doctest: +SKIP
     """
-    writer = _POINT_WRITERS.get(_extension(path))
+    writer = _POINT_WRITERS.get(extension(path))
     if writer is None:
         raise InputError(
-            f"cannot write point clouds as {_extension(path) or '(no extension)'!r}; "
+            f"cannot write point clouds as {extension(path) or '(no extension)'!r}; "
             f"use one of {', '.join(_POINT_WRITERS)}",
             path,
         )
@@ -1004,12 +737,12 @@ def _write_ply(tmp, V, F=None):
 def _write_with_trimesh(tmp, V, F):
     mesh = trimesh.Trimesh(vertices=V, faces=F, process=False)
     with open(tmp, "wb") as fh:
-        fh.write(mesh.export(file_type=_extension(tmp)[1:]))
+        fh.write(mesh.export(file_type=extension(tmp)[1:]))
 
 
 def _write_xyz(tmp, V):
     with open(tmp, "w", encoding="ascii", newline="\n") as fh:
-        if _extension(tmp) == ".pts":
+        if extension(tmp) == ".pts":
             fh.write(f"{len(V)}\n")
         np.savetxt(fh, V, fmt="%.17g %.17g %.17g")
 
@@ -1033,293 +766,3 @@ _POINT_WRITERS = {
     ".pts": _write_xyz,
     ".npy": _write_npy,
 }
-
-
-# ----------------------------------------------------------------------------- landmarks
-
-
-def load_landmarks(path: str | os.PathLike) -> dict[str, np.ndarray]:
-    """Load named 3D landmarks.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-        A Thea ``.picked`` file (first line: the number of landmarks; then one row
-        ``Picked <face> <b0> <b1> <b2> <label> <x> <y> <z> [vertex]`` each, 9 or 10
-        whitespace-separated columns), a ``.json`` object ``{label: [x, y, z]}``, or a
-        ``.csv`` file of ``label,x,y,z`` rows with an optional ``label,x,y,z`` header.
-
-    Returns
-    -------
-    dict of str to (3,) float64 ndarray
-        Label -> position, in file order.
-
-    Raises
-    ------
-    LandmarkFileError
-        Missing or empty file, unknown extension, wrong column count, a count line that
-        does not match, non-numeric or non-finite values, duplicate or empty labels.
-
-    Examples
-    --------
-    >>> marks = load_landmarks("source.picked")  # doctest: +SKIP
-    >>> marks["nose"]  # doctest: +SKIP
-    array([0.01, 0.42, 0.13])
-    """
-    parser = {".picked": _parse_picked, ".json": _parse_json, ".csv": _parse_csv}.get(
-        _extension(path)
-    )
-    if parser is None:
-        raise LandmarkFileError(
-            f"unknown landmark extension {_extension(path) or '(none)'!r}; "
-            f"supported: {', '.join(SUPPORTED_LANDMARK_EXTENSIONS)}",
-            path,
-        )
-    text = _read_text(path, LandmarkFileError)
-    try:
-        entries = parser(text, path)
-    except InputError:
-        raise
-    except Exception as exc:  # any parser failure is a property of the file
-        kind = _extension(path)[1:].upper()
-        raise LandmarkFileError(f"cannot be read as {kind}: {_one_line(exc)}", path) from exc
-    landmarks: dict[str, np.ndarray] = {}
-    for where, label, coords in entries:
-        if not label:
-            raise LandmarkFileError(f"{where}: empty label", path)
-        if label in landmarks:
-            raise LandmarkFileError(f"{where}: duplicate label {label!r}", path)
-        try:
-            xyz = np.array([float(c) for c in coords], dtype=np.float64)
-        except (TypeError, ValueError):
-            raise LandmarkFileError(
-                f"{where}: coordinates of {label!r} are not numbers: {list(coords)}", path
-            ) from None
-        except OverflowError:  # a JSON integer too large for a float
-            raise LandmarkFileError(
-                f"{where}: coordinates of {label!r} are not finite (too large for a float)",
-                path,
-            ) from None
-        if not np.isfinite(xyz).all():
-            raise LandmarkFileError(f"{where}: coordinates of {label!r} are not finite", path)
-        landmarks[label] = xyz
-    if not landmarks:
-        raise LandmarkFileError("contains no landmarks", path)
-    return landmarks
-
-
-def _parse_picked(text, path):
-    rows = [(n, line.split()) for n, line in enumerate(text.splitlines(), 1) if line.strip()]
-    if not rows:
-        raise LandmarkFileError("is empty", path)
-    (first, head), rows = rows[0], rows[1:]
-    try:
-        (count,) = map(int, head)
-    except ValueError:
-        raise LandmarkFileError(
-            f"line {first}: the first line must be the number of landmarks, got {' '.join(head)!r}",
-            path,
-        ) from None
-    if count != len(rows):
-        raise LandmarkFileError(f"the first line says {count} landmarks but {len(rows)} follow",
-                                path)
-    entries = []
-    for number, t in rows:
-        if len(t) not in (9, 10):
-            raise LandmarkFileError(
-                f"line {number}: expected 9 or 10 columns "
-                f"(Picked face b0 b1 b2 label x y z [vertex]), found {len(t)}",
-                path,
-            )
-        try:
-            for convert, token in zip([int, float, float, float], t[1:5]):
-                convert(token)
-            if len(t) == 10:
-                int(t[9])
-        except ValueError:
-            raise LandmarkFileError(
-                f"line {number}: face, barycentric and vertex columns must be numbers", path
-            ) from None
-        entries.append((f"line {number}", t[5], t[6:9]))
-    return entries
-
-
-def _csv_rows(reader, path):
-    try:
-        yield from reader
-    except csv.Error as exc:
-        raise LandmarkFileError(f"line {reader.line_num}: invalid CSV: {exc}", path) from None
-
-
-class _Pairs(list):
-    """A JSON object as its (key, value) pairs, so duplicate keys can be reported."""
-
-
-def _parse_json(text, path):
-    try:
-        data = json.loads(text, object_pairs_hook=_Pairs)
-    except json.JSONDecodeError as exc:
-        raise LandmarkFileError(f"is not valid JSON: {exc}", path) from None
-    if not isinstance(data, _Pairs):
-        raise LandmarkFileError('must hold a JSON object {"label": [x, y, z], ...}', path)
-    entries = []
-    for number, (label, value) in enumerate(data, 1):
-        where = f"entry {number}"
-        if (
-            not isinstance(value, list)
-            or len(value) != 3
-            or not all(isinstance(c, (int, float)) and not isinstance(c, bool) for c in value)
-        ):
-            raise LandmarkFileError(
-                f"{where}: {label!r} must map to [x, y, z] numbers, got {json.dumps(value)}",
-                path,
-            )
-        entries.append((where, label.strip(), value))
-    return entries
-
-
-def _parse_csv(text, path):
-    reader = csv.reader(text.splitlines())
-    entries, first = [], True
-    for row in _csv_rows(reader, path):
-        cells = [c.strip() for c in row]
-        if not any(cells) or cells[0].startswith("#"):
-            continue
-        header, first = first and [c.lower() for c in cells] == ["label", "x", "y", "z"], False
-        if header:
-            continue
-        if len(cells) != 4:
-            raise LandmarkFileError(
-                f"line {reader.line_num}: expected 4 columns (label,x,y,z), found {len(cells)}",
-                path,
-            )
-        entries.append((f"line {reader.line_num}", cells[0], cells[1:]))
-    return entries
-
-
-def save_landmarks(path: str | os.PathLike, landmarks: Mapping[str, object]) -> None:
-    """Write landmarks atomically as JSON or CSV.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-        Destination ending in ``.json`` (``{label: [x, y, z]}``) or ``.csv`` (header
-        ``label,x,y,z``). ``.picked`` is refused: its rows need a face index and barycentric
-        coordinates that a label -> position mapping does not carry.
-    landmarks : mapping of str to (3,) array_like of float
-        Non-empty string labels (no surrounding whitespace) to finite positions; written in
-        the mapping's order with ``repr``-exact floats.
-
-    Raises
-    ------
-    InputError
-        Unsupported extension, empty mapping, bad labels or coordinates, or an unwritable
-        destination.
-
-    Examples
-    --------
-    >>> save_landmarks("marks.json", {"nose": [0.0, 0.4, 0.1]})  # doctest: +SKIP
-    >>> load_landmarks("marks.json")  # doctest: +SKIP
-    {'nose': array([0. , 0.4, 0.1])}
-    """
-    ext = _extension(path)
-    if ext not in (".json", ".csv"):
-        why = " (a .picked row needs a face index and barycentric coordinates)"
-        raise InputError(
-            f"cannot write landmarks as {ext or '(no extension)'!r}"
-            f"{why if ext == '.picked' else ''}; use .json or .csv",
-            path,
-        )
-    if not isinstance(landmarks, Mapping):
-        raise InputError("landmarks must be a mapping {label: [x, y, z]}", path)
-    items = []
-    for label, value in landmarks.items():
-        if not isinstance(label, str) or not label or label != label.strip():
-            raise InputError(
-                f"landmark label {label!r} must be a non-empty string without surrounding "
-                "spaces",
-                path,
-            )
-        try:
-            xyz = np.asarray(value, dtype=np.float64)
-        except (TypeError, ValueError):
-            xyz = np.empty(0)
-        if xyz.shape != (3,) or not np.isfinite(xyz).all():
-            raise InputError(f"landmark {label!r} must be 3 finite numbers, got {value!r}", path)
-        items.append((label, [float(c) for c in xyz]))
-    if not items:
-        raise InputError("no landmarks to write", path)
-    with atomic_output(path) as tmp, open(tmp, "w", encoding="utf-8", newline="") as fh:
-        if ext == ".json":
-            json.dump(dict(items), fh, indent=2, allow_nan=False)
-            fh.write("\n")
-        else:
-            writer = csv.writer(fh, lineterminator="\n")
-            writer.writerow(["label", "x", "y", "z"])
-            writer.writerows([label, *map(repr, xyz)] for label, xyz in items)
-
-
-@dataclass(frozen=True)
-class LandmarkMatch:
-    """Two landmark sets matched by label (:func:`match_landmarks`).
-
-    Attributes
-    ----------
-    labels : list of str
-        The shared labels, in the first set's order.
-    source, target : (L, 3) float64
-        Their positions in each set; row ``i`` is ``labels[i]``.
-    source_only, target_only : list of str
-        Labels found in one set only (reported, never silently dropped).
-    """
-
-    labels: list
-    source: np.ndarray
-    target: np.ndarray
-    source_only: list
-    target_only: list
-
-
-def match_landmarks(source: Mapping[str, object], target: Mapping[str, object], *,
-                    minimum: int = 4, source_name=None, target_name=None) -> LandmarkMatch:
-    """Pair two sets of named landmarks by label.
-
-    Parameters
-    ----------
-    source, target : mapping of str to (3,) array_like of float
-        Label -> position, as :func:`load_landmarks` returns them.
-    minimum : int, default 4
-        Fewest shared labels accepted.
-    source_name, target_name : str or os.PathLike, optional
-        The files the sets came from, named in the error.
-
-    Returns
-    -------
-    LandmarkMatch
-        Shared labels in ``source``'s order, and the labels only one set has.
-
-    Raises
-    ------
-    InputError
-        Fewer than ``minimum`` shared labels (the message names both files and the count).
-
-    Examples
-    --------
-    >>> m = match_landmarks({"a": [0, 0, 0], "b": [1, 0, 0], "c": [0, 1, 0]},
-    ...                     {"b": [2, 0, 0], "a": [0, 0, 1], "d": [0, 0, 0]}, minimum=2)
-    >>> m.labels, m.source_only, m.target_only, m.target[0].tolist()
-    (['a', 'b'], ['c'], ['d'], [0.0, 0.0, 1.0])
-    """
-    labels = [label for label in source if label in target]
-    if len(labels) < minimum:
-        names = (f"{source_name or 'the source landmarks'} and "
-                 f"{target_name or 'the target landmarks'}")
-        raise InputError(f"{names} share {len(labels)} landmark label(s); at least "
-                         f"{minimum} are needed")
-
-    def rows(marks):
-        return np.array([np.asarray(marks[label], dtype=np.float64) for label in labels])
-
-    return LandmarkMatch(labels=labels, source=rows(source), target=rows(target),
-                         source_only=[label for label in source if label not in target],
-                         target_only=[label for label in target if label not in source])

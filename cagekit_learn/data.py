@@ -67,9 +67,10 @@ import numpy as np
 
 from cagekit.datasets import synthetic as _synthetic
 from cagekit.errors import InputError
+from cagekit.files import atomic_output
 from cagekit.frame import normalize
 from cagekit.geometry import as_count
-from cagekit.io import SUPPORTED_MESH_EXTENSIONS, atomic_output, load_shape
+from cagekit.io import SUPPORTED_MESH_EXTENSIONS, load_shape
 from cagekit.sampling import surface_samples
 
 __all__ = [

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from builders import assert_bad_input, cagekit, load_obj
 
-from cagekit.io import save_landmarks, save_mesh
+from cagekit.io import save_mesh
+from cagekit.landmarks import save_landmarks
 
 
 @pytest.fixture(scope="module")
@@ -76,6 +77,23 @@ def test_deform_with_landmarks_and_a_given_cage(pair, tmp_path):
     assert report["weights"]["chamfer"] == 1.0 and "landmarks" in report["losses"]
 
 
+def test_deform_uses_the_shared_landmark_labels_and_warns_of_the_others(pair, tmp_path):
+    folder, source, target = pair
+    V, _ = load_obj(source)
+    Vt, _ = load_obj(target)
+    rows = (0, 7, 50, 99, 120)
+    save_landmarks(tmp_path / "src.json", {**{f"p{i}": V[i] for i in rows}, "nose": V[3]})
+    save_landmarks(tmp_path / "tgt.json", {**{f"p{i}": Vt[i] for i in rows}, "noze": Vt[3]})
+    result = cagekit("deform", source, target, "-o", tmp_path / "out.obj", "--faces", "80",
+                     "--landmarks", tmp_path / "src.json", tmp_path / "tgt.json", "--json")
+    assert result.returncode == 0, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "warning" in lines[0], result.stderr
+    assert "nose (only in" in lines[0] and "noze (only in" in lines[0]
+    assert "src.json" in lines[0] and "tgt.json" in lines[0]
+    assert "landmarks" in json.loads(result.stdout)["losses"]
+
+
 def test_deform_bad_inputs_exit_2_with_one_line(pair, tmp_path):
     folder, source, target = pair
     before = source.read_bytes(), target.read_bytes()
@@ -91,7 +109,8 @@ def test_deform_bad_inputs_exit_2_with_one_line(pair, tmp_path):
     save_landmarks(tmp_path / "a.json", {"nose": [0, 0, 0], "tail": [1, 0, 0]})
     save_landmarks(tmp_path / "b.json", {"nose": [0, 0, 0]})
     assert_bad_input(cagekit("deform", source, target, "-o", out, "--landmarks",
-                             tmp_path / "a.json", tmp_path / "b.json"), "b.json")
+                             tmp_path / "a.json", tmp_path / "b.json"), "a.json", "b.json",
+                     "share 1 landmark")
     assert_bad_input(cagekit("deform", source, target, "-o", out, "--weight", "smooth=1"),
                      "--weight", "smooth")
     assert_bad_input(cagekit("deform", source, target, "-o", out, "--weight", "cage=nan"),
@@ -104,8 +123,8 @@ def test_deform_bad_inputs_exit_2_with_one_line(pair, tmp_path):
     assert_bad_input(cagekit("deform", source, huge, "-o", out, "--method", "scale"),
                      "huge.xyz")
     V, _ = load_obj(source)
-    save_landmarks(tmp_path / "far.json", {"a": V[0] * 100, "b": V[1] * 100})
-    save_landmarks(tmp_path / "near.json", {"a": V[0], "b": V[1]})
+    save_landmarks(tmp_path / "far.json", {f"p{i}": V[i] * 100 for i in range(4)})
+    save_landmarks(tmp_path / "near.json", {f"p{i}": V[i] for i in range(4)})
     assert_bad_input(cagekit("deform", source, target, "-o", out, "--landmarks",
                              tmp_path / "far.json", tmp_path / "near.json"), "far.json")
     assert_bad_input(cagekit("deform", source, target, "-o", out, "--weight", "cage"))

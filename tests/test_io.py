@@ -11,7 +11,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
+from cagekit import files as cfiles
 from cagekit import io as cio
+from cagekit import landmarks as clm
 from cagekit.errors import InputError, LandmarkFileError, MeshFileError, MeshFileWarning
 
 # A tetrahedron whose vertex order is deliberately not sorted in any way.
@@ -467,7 +469,7 @@ def test_mutated_files_load_or_raise_input_errors(tmp_path_factory, name, edits)
         i = int(where * len(data))
         data[i : i + cut] = insert
     path = write(tmp_path_factory.mktemp("fuzz") / name, bytes(data))
-    loader = cio.load_landmarks if name.startswith("l.") else cio.load_shape
+    loader = clm.load_landmarks if name.startswith("l.") else cio.load_shape
     try:
         loader(path)
     except InputError as exc:
@@ -478,7 +480,7 @@ def test_errors_are_input_errors(tmp_path):
     with pytest.raises(InputError):
         cio.load_mesh(tmp_path / "missing.ply")
     with pytest.raises(ValueError):
-        cio.load_landmarks(tmp_path / "missing.json")
+        clm.load_landmarks(tmp_path / "missing.json")
 
 
 # ----------------------------------------------------------------------------- writing
@@ -522,17 +524,17 @@ def test_save_rejects_unsupported_destinations(tmp_path):
 def test_atomic_output_replaces_on_success_only(tmp_path):
     target = write(tmp_path / "result.json", "old")
     os.chmod(target, 0o640)
-    with pytest.raises(RuntimeError), cio.atomic_output(target) as tmp:
+    with pytest.raises(RuntimeError), cfiles.atomic_output(target) as tmp:
         assert os.path.dirname(tmp) == str(tmp_path) and tmp.endswith(".json")
         write(tmp, "half written")
         raise RuntimeError("crash while writing")
     assert target.read_text() == "old" and os.listdir(tmp_path) == ["result.json"]
-    with cio.atomic_output(target) as tmp:
+    with cfiles.atomic_output(target) as tmp:
         write(tmp, "new")
         assert target.read_text() == "old"
     assert target.read_text() == "new" and os.listdir(tmp_path) == ["result.json"]
     assert os.stat(target).st_mode & 0o777 == 0o640
-    with cio.atomic_output(tmp_path / "fresh.png") as tmp:
+    with cfiles.atomic_output(tmp_path / "fresh.png") as tmp:
         write(tmp, b"\x89PNG")
     assert (tmp_path / "fresh.png").read_bytes() == b"\x89PNG"
 
@@ -556,7 +558,7 @@ def test_a_killed_writers_temporary_is_removed_by_the_next_run(tmp_path):
 
     target = tmp_path / "big.obj"
     code = ("import sys, time\n"
-            "from cagekit.io import atomic_output\n"
+            "from cagekit.files import atomic_output\n"
             "with atomic_output(sys.argv[1]) as tmp:\n"
             "    open(tmp, 'w').write('x' * 100000)\n"
             "    print('writing', flush=True)\n"
@@ -584,19 +586,19 @@ def test_a_fifo_named_like_a_temporary_does_not_block_writes(tmp_path):
 
 
 def test_output_folder_removes_the_folders_it_made_when_the_block_fails(tmp_path):
-    with pytest.raises(RuntimeError), cio.output_folder(tmp_path / "a" / "b" / "c"):
+    with pytest.raises(RuntimeError), cfiles.output_folder(tmp_path / "a" / "b" / "c"):
         raise RuntimeError("the run failed")
     assert os.listdir(tmp_path) == []
     (tmp_path / "kept").mkdir()
-    with pytest.raises(KeyboardInterrupt), cio.output_folder(tmp_path / "kept" / "new"):
+    with pytest.raises(KeyboardInterrupt), cfiles.output_folder(tmp_path / "kept" / "new"):
         raise KeyboardInterrupt
     assert os.listdir(tmp_path) == ["kept"] and os.listdir(tmp_path / "kept") == []
-    with cio.output_folder(tmp_path / "x" / "y") as folder:
+    with cfiles.output_folder(tmp_path / "x" / "y") as folder:
         write(os.path.join(folder, "f.txt"), "out")
     assert (tmp_path / "x" / "y" / "f.txt").read_text() == "out"
     write(tmp_path / "file", "a file")
     with pytest.raises(InputError, match="is not a folder"), \
-            cio.output_folder(tmp_path / "file" / "sub"):
+            cfiles.output_folder(tmp_path / "file" / "sub"):
         pass
 
 
@@ -625,7 +627,7 @@ def test_picked_landmarks_with_9_and_10_columns(tmp_path):
         "2\nPicked 12 0.2 0.3 0.5 nose 0.5 1.25 -2\n\n"
         "Picked 7 1 0 0 left_eye 1e-3 2 3 41\n",
     )
-    marks = cio.load_landmarks(path)
+    marks = clm.load_landmarks(path)
     assert list(marks) == ["nose", "left_eye"]
     assert {k: v.tolist() for k, v in marks.items()} == EXPECTED_MARKS
     assert all(v.dtype == np.float64 and v.shape == (3,) for v in marks.values())
@@ -636,7 +638,7 @@ def test_json_and_csv_landmarks(tmp_path):
     with_header = write(tmp_path / "a.csv", "label,x,y,z\nnose,0.5,1.25,-2\nleft_eye, 1e-3, 2, 3\n")
     no_header = write(tmp_path / "b.csv", "nose,0.5,1.25,-2\n\n# comment\nleft_eye,1e-3,2,3\n")
     for path in (as_json, with_header, no_header):
-        marks = cio.load_landmarks(path)
+        marks = clm.load_landmarks(path)
         assert {k: v.tolist() for k, v in marks.items()} == EXPECTED_MARKS
         assert list(marks) == ["nose", "left_eye"]
 
@@ -644,8 +646,8 @@ def test_json_and_csv_landmarks(tmp_path):
 @pytest.mark.parametrize("ext", [".json", ".csv"])
 def test_landmark_round_trip_is_exact(tmp_path, ext):
     marks = {"tip, of nose": np.array([0.1, 1 / 3, -0.0]), "chin": [1e300, 5e-324, 2.0]}
-    cio.save_landmarks(tmp_path / f"m{ext}", marks)
-    loaded = cio.load_landmarks(tmp_path / f"m{ext}")
+    clm.save_landmarks(tmp_path / f"m{ext}", marks)
+    loaded = clm.load_landmarks(tmp_path / f"m{ext}")
     assert list(loaded) == list(marks)
     for label, value in marks.items():
         assert np.array_equal(bits(loaded[label]), bits(np.asarray(value, dtype=float)))
@@ -687,20 +689,20 @@ BAD_LANDMARKS = [
 @pytest.mark.parametrize("name, content, match", BAD_LANDMARKS, ids=[b[0] for b in BAD_LANDMARKS])
 def test_bad_landmark_files(tmp_path, name, content, match):
     path = write(tmp_path / name, content)
-    expect_error(path, cls=LandmarkFileError, loader=cio.load_landmarks, match=match)
+    expect_error(path, cls=LandmarkFileError, loader=clm.load_landmarks, match=match)
 
 
 def test_save_landmarks_validates(tmp_path):
     with pytest.raises(InputError, match="face index and barycentric"):
-        cio.save_landmarks(tmp_path / "m.picked", EXPECTED_MARKS)
+        clm.save_landmarks(tmp_path / "m.picked", EXPECTED_MARKS)
     with pytest.raises(InputError, match="3 finite numbers"):
-        cio.save_landmarks(tmp_path / "m.json", {"a": [0, 1]})
+        clm.save_landmarks(tmp_path / "m.json", {"a": [0, 1]})
     with pytest.raises(InputError, match="3 finite numbers"):
-        cio.save_landmarks(tmp_path / "m.json", {"a": [0, 1, np.nan]})
+        clm.save_landmarks(tmp_path / "m.json", {"a": [0, 1, np.nan]})
     with pytest.raises(InputError, match="non-empty string"):
-        cio.save_landmarks(tmp_path / "m.csv", {" a": [0, 1, 2]})
+        clm.save_landmarks(tmp_path / "m.csv", {" a": [0, 1, 2]})
     with pytest.raises(InputError, match="no landmarks"):
-        cio.save_landmarks(tmp_path / "m.csv", {})
+        clm.save_landmarks(tmp_path / "m.csv", {})
     assert os.listdir(tmp_path) == []
 
 

@@ -16,6 +16,7 @@ from cagekit.alignment import Similarity  # noqa: E402
 from cagekit.coords import bind  # noqa: E402
 from cagekit.datasets import humanoid  # noqa: E402
 from cagekit.errors import InputError  # noqa: E402
+from cagekit.landmarks import load_landmarks, save_landmarks  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -51,7 +52,7 @@ def test_data_set_is_consistent(data):
     pose = humanoid.random_pose(humanoid_data.TEST_POSE_SEED)
     np.testing.assert_allclose(G0, humanoid.rig("stocky", resolution=0.5).pose(pose),
                                atol=1e-9)
-    marks = io.load_landmarks(out / "template_landmarks.json")
+    marks = load_landmarks(out / "template_landmarks.json")
     assert len(marks) == 40
     rig = humanoid.rig("template", resolution=0.5)
     for label, xyz in marks.items():
@@ -95,9 +96,9 @@ def test_end_to_end_transfer_beats_the_rest_pose(data, tmp_path):
 def _character(out, body="stocky"):
     Vt, Ft = io.load_mesh(out / "template.obj")
     cage_v, cage_f = io.load_mesh(out / "template_cage.obj")
-    marks_t = io.load_landmarks(out / "template_landmarks.json")
+    marks_t = load_landmarks(out / "template_landmarks.json")
     Vc, Fc = io.load_mesh(out / "characters" / f"{body}.obj")
-    marks_c = io.load_landmarks(out / "characters" / f"{body}_landmarks.json")
+    marks_c = load_landmarks(out / "characters" / f"{body}_landmarks.json")
     return (Vt, Ft), (cage_v, cage_f), marks_t, (Vc, Fc), marks_c
 
 
@@ -141,10 +142,10 @@ def test_classical_template_fit_is_close_to_the_pose(data):
 
 def test_unmatched_labels_are_reported(data, tmp_path):
     out, _ = data
-    marks = io.load_landmarks(out / "characters" / "stocky_landmarks.json")
+    marks = load_landmarks(out / "characters" / "stocky_landmarks.json")
     first = next(iter(marks))
     marks["extra_point"] = marks.pop(first)
-    io.save_landmarks(tmp_path / "marks.csv", marks)
+    save_landmarks(tmp_path / "marks.csv", marks)
     inputs = _inputs(out)
     inputs[4] = tmp_path / "marks.csv"
     result = _run([*inputs, out / "poses" / "pose_000.obj", "-o", tmp_path / "res"])
@@ -157,8 +158,8 @@ def test_unmatched_labels_are_reported(data, tmp_path):
 
 def test_too_few_matching_landmarks_is_one_clear_line(data, tmp_path):
     out, _ = data
-    marks = io.load_landmarks(out / "characters" / "stocky_landmarks.json")
-    io.save_landmarks(tmp_path / "few.json", dict(list(marks.items())[:3]))
+    marks = load_landmarks(out / "characters" / "stocky_landmarks.json")
+    save_landmarks(tmp_path / "few.json", dict(list(marks.items())[:3]))
     inputs = _inputs(out)
     inputs[4] = tmp_path / "few.json"
     result = _run([*inputs, out / "poses", "-o", tmp_path / "res"])
@@ -233,20 +234,6 @@ def test_grid_that_is_not_png_is_refused(data, tmp_path):
     assert result.exit_code == 2 and "grid.jpg" in result.stderr and ".png" in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "res").exists() and not (tmp_path / "grid.jpg").exists()
-
-
-def test_match_landmarks_pairs_by_label_and_reports_the_rest():
-    a = {"nose": [0, 1, 2], "chin": [0, 0, 1], "l_eye": [1, 1, 1], "r_eye": [-1, 1, 1],
-         "ear": [2, 0, 0]}
-    b = {"r_eye": [-2, 2, 2], "chin": [0, 0, 2], "nose": [0, 2, 4], "l_eye": [2, 2, 2],
-         "tail": [9, 9, 9]}
-    m = io.match_landmarks(a, b)
-    assert m.labels == ["nose", "chin", "l_eye", "r_eye"]  # the first set's order
-    np.testing.assert_array_equal(m.target, 2 * m.source)
-    assert m.source_only == ["ear"] and m.target_only == ["tail"]
-    with pytest.raises(InputError, match=r"a\.json and b\.csv share 4 landmark label\(s\); "
-                                         r"at least 5"):
-        io.match_landmarks(a, b, minimum=5, source_name="a.json", target_name="b.csv")
 
 
 def test_corresponds_needs_the_same_vertex_count_and_faces():
