@@ -63,13 +63,13 @@ from tqdm import tqdm
 
 from cagekit import io
 from cagekit.cage import check_cage
-from cagekit.cli import (
+from cagekit.cli.common import (
     Command,
-    _debug_option,
-    _emit_json,
-    _json_option,
-    _progress_enabled,
-    _same_file,
+    debug_option,
+    emit_json,
+    json_option,
+    progress_enabled,
+    same_file,
 )
 from cagekit.coords import bind
 from cagekit.coords.binding import warn_outside
@@ -464,8 +464,8 @@ def render_grid(path, rows, titles=None, labels=None, panel=(240, 300)) -> None:
 @click.option("--max-evaluations", default=300, show_default=True,
               type=click.IntRange(min=1), help="L-BFGS evaluations of the cage fit.")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0))
-@_json_option
-@_debug_option
+@json_option
+@debug_option
 def main(template, template_cage, template_landmarks, character, character_landmarks, poses,
          out_dir, model_path, align, grid_path, max_evaluations, seed, as_json):
     """Transfer the TEMPLATE's POSES to a novel CHARACTER given matching landmarks.
@@ -496,7 +496,7 @@ def main(template, template_cage, template_landmarks, character, character_landm
                              grid_path)
     for output in outputs:
         for given in inputs:
-            if _same_file(str(output), given):
+            if same_file(str(output), given):
                 raise InputError(f"refusing to overwrite the input file {given}; choose "
                                  "another output folder", output)
     Vt, Ft = io.load_mesh(template)
@@ -526,7 +526,7 @@ def main(template, template_cage, template_landmarks, character, character_landm
     fitted = time.perf_counter()
     fitter = classical_fitter(Vt, cage_v, cage_f) if model is None else None
     results = []
-    for (Vp, Fp) in tqdm(pose_meshes, desc="poses", unit="pose", disable=not _progress_enabled(),
+    for (Vp, Fp) in tqdm(pose_meshes, desc="poses", unit="pose", disable=not progress_enabled(),
                          leave=False):
         t0 = time.perf_counter()
         if model is None:
@@ -571,7 +571,7 @@ def main(template, template_cage, template_landmarks, character, character_landm
         json.dump(report, fh, indent=2, allow_nan=False)
         fh.write("\n")
     if as_json:
-        _emit_json(report)
+        emit_json(report)
     else:
         state = "reached" if fit.converged else "NOT reached"
         click.echo(f"wrote {len(rows)} pose(s), character_cage.obj and report.json to "

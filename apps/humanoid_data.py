@@ -32,7 +32,7 @@ import click
 import numpy as np
 
 from cagekit import io
-from cagekit.cli import Command, FiniteFloatRange, _debug_option, _emit_json, _json_option
+from cagekit.cli.common import Command, FiniteFloatRange, debug_option, emit_json, json_option
 from cagekit.datasets import humanoid
 from cagekit.errors import InputError
 from cagekit.files import atomic_output
@@ -154,14 +154,14 @@ def write(out_dir, *, poses: int = 20, train_poses: int = 1000, seed: int = 0,
 @click.option("--resolution", default=1.0, show_default=True,
               type=FiniteFloatRange(min=0.25, max=4.0), help="Mesh resolution of the bodies.")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0))
-@_json_option
-@_debug_option
+@json_option
+@debug_option
 def main(out_dir, poses, train_poses, landmarks, cage_faces, resolution, seed, as_json):
     """Write posed humanoids with ground truth to OUT_DIR (see the module docstring)."""
     summary = write(out_dir, poses=poses, train_poses=train_poses, seed=seed,
                     landmarks=landmarks, cage_faces=cage_faces, resolution=resolution)
     if as_json:
-        _emit_json(summary)
+        emit_json(summary)
     else:
         click.echo(f"wrote {out_dir}: template ({summary['template_vertices']} vertices, "
                    f"cage of {summary['cage_vertices']} vertices), {len(summary['bodies'])} "

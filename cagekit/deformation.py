@@ -90,7 +90,7 @@ from cagekit.cage import check_cage
 from cagekit.coords import bind
 from cagekit.coords.binding import warn_outside
 from cagekit.errors import InputError
-from cagekit.frame import normalize
+from cagekit.frame import Frame
 from cagekit.geometry import (
     as_shape,
     as_vertices,
@@ -100,7 +100,8 @@ from cagekit.geometry import (
 from cagekit.optimize import minimise
 from cagekit.sampling import subset, surface_samples
 
-__all__ = ["DeformResult", "DEFAULT_WEIGHTS", "METHODS", "deform"]
+__all__ = ["CageEnergy", "CageProblem", "CageSolution", "DeformResult", "DEFAULT_WEIGHTS",
+           "METHODS", "deform", "solve"]
 
 METHODS = ("cage", "scale", "nricp")
 REFERENCES = ("source", "aligned")
@@ -114,6 +115,9 @@ DEFAULT_WEIGHTS = {
 }
 #: the cage weight's default with ``reference="source"``
 SOURCE_REFERENCE_CAGE_WEIGHT = 1.0
+#: landmarks may lie this far outside their shape's box (unit frame: the box fills
+#: [-1, 1] on its longest axis, so 0.35 is 10% of the largest diagonal, 2 sqrt 3)
+LANDMARK_MARGIN = 0.35
 
 
 @dataclass
@@ -147,6 +151,9 @@ class DeformResult:
         Energy evaluations of the optimiser (0 for ``scale``).
     seconds : float
         Wall time of the whole call, cage fitting included.
+    source_frame, target_frame : cagekit.frame.Frame
+        The unit frames of the source and the target (the paper's frame, in which the
+        losses are measured; :func:`cagekit.metrics.evaluate` takes them).
     """
 
     vertices: np.ndarray
@@ -161,6 +168,19 @@ class DeformResult:
     initial_energy: float | None = None
     iterations: int = 0
     seconds: float = 0.0
+    source_frame: Frame | None = None
+    target_frame: Frame | None = None
+
+    def set_solution(self, problem: CageProblem, solution: CageSolution) -> None:
+        """Take a :func:`solve` result, mapped from the unit frames to the shapes' own."""
+        ft = self.target_frame
+        self.vertices = ft.to_world(solution.vertices)
+        self.cage_v = self.source_frame.to_world(problem.cage_v)
+        self.cage_f = problem.cage_f
+        self.deformed_cage_v = ft.to_world(solution.deformed_cage)
+        self.losses, self.weights = solution.losses, problem.weights
+        self.initial_energy, self.energy = solution.initial_energy, solution.energy
+        self.iterations = solution.evaluations
 
 
 # ------------------------------------------------------------------------------ energy
@@ -269,7 +289,19 @@ def _weights(user, landmarks, symmetry, reference):
     return weights
 
 
-def _landmarks(landmarks, cs, ss, ct, st):
+def _check_options(symmetry, reference, counts):
+    if reference not in REFERENCES:
+        raise InputError(f"reference must be one of {', '.join(REFERENCES)}, got "
+                         f"{reference!r}")
+    if symmetry is not None and symmetry not in losses.AXES:
+        raise InputError(f"symmetry must be x, y, z or None, got {symmetry!r}")
+    for name, value in counts.items():
+        if int(value) < 1:
+            raise InputError(f"{name} must be at least 1, got {value}")
+
+
+def _landmarks_in_frames(landmarks, source_frame, target_frame):
+    """Landmark pairs mapped to the unit frames, refused when far outside their shape."""
     if landmarks is None:
         return None, None
     try:
@@ -280,13 +312,12 @@ def _landmarks(landmarks, cs, ss, ct, st):
     tgt = as_vertices(tgt, "target landmarks")
     if len(src) != len(tgt):
         raise InputError(f"{len(src)} source landmarks but {len(tgt)} target landmarks")
-    src_n, tgt_n = (src - cs) / ss, (tgt - ct) / st
+    src_n, tgt_n = source_frame.to_unit(src), target_frame.to_unit(tgt)
     for name, points in (("source", src_n), ("target", tgt_n)):
-        # normalised shapes fill [-1, 1] on their longest axis: 0.35 is 10% of the
-        # largest possible diagonal (2 sqrt 3) beyond the bounding box
-        if np.abs(points).max() > 1.0 + 0.35:
-            raise InputError(f"{name} landmarks lie far outside the {name} shape's bounding "
-                             "box (more than 10% of its diagonal): wrong file or units?")
+        if np.abs(points).max() > 1.0 + LANDMARK_MARGIN:
+            raise InputError(f"the {name} landmarks lie far outside the {name} shape's "
+                             "bounding box (more than 10% of its diagonal): wrong file or "
+                             "units?")
     return src_n, tgt_n
 
 
@@ -308,37 +339,126 @@ def _samples_of(role, V, F, n, seed):
         raise InputError(f"the {role}: {exc.problem}") from None
 
 
-def _cage_method(Vs_n, Fs, Vt_n, Ft, cage_n, cage_f, weights, symmetry, lm, samples,
-                 shape_points, max_evaluations, tolerance, seed, coords, reference,
-                 progress, C_start=None):
-    rng = np.random.default_rng(seed)
-    S = _samples_of("source", Vs_n, Fs, samples, int(rng.integers(2**31)))
-    T = _samples_of("target", Vt_n, Ft, samples, int(rng.integers(2**31)))
-    used, own, index, mask = _shape_rows(Vs_n, Fs, shape_points, rng)
-    src_lm, tgt_lm = lm
-    parts = [Vs_n, S] + ([src_lm] if src_lm is not None else [])
-    # the cage is a fitted one, or a given one checked by deform
-    binding = bind(np.concatenate(parts), cage_n, cage_f, method=coords, check=False)
-    W = binding.weights
-    n, s = len(Vs_n), len(S)
-    W_vertices, W_samples = W[:n], W[n:n + s]
-    W_landmarks = W[n + s:] if src_lm is not None else None
-    W_shape = np.ascontiguousarray(W_vertices[used])
+@dataclass
+class CageProblem:
+    """One source-target pair, bound to the source's cage, in the unit frames.
 
-    # coarse: the bounding boxes
-    C_box = binding.cage_v * box_scale(Vs_n, Vt_n)
-    C_ref = C_box if reference == "aligned" else binding.cage_v
-    shape_ref = losses.shape_reference(W_shape @ C_ref, own, index, mask)
-    energy = CageEnergy(W_samples, T, W_shape, shape_ref, binding.cage_f, C_ref, weights,
-                        symmetry, W_landmarks, tgt_lm)
-    # fine: the full energy, from the boxes or from a given deformed cage
-    C0 = C_box if C_start is None else C_start
-    start, _, _ = energy.evaluate(C0)
-    minimum = minimise(energy, C0, max_evaluations, tolerance, progress)
-    C = minimum.x
-    total, _, terms = energy.evaluate(C)
-    return (W_vertices @ C, binding.cage_v, binding.cage_f, C, terms, (start, total),
-            minimum.evaluations)
+    Build it with :meth:`create`; :func:`solve` minimises its energy. Everything is in
+    the paper's frame: the source, its cage and the source landmarks normalised by the
+    source's :class:`~cagekit.frame.Frame`, the target and its landmarks by the target's.
+
+    Attributes
+    ----------
+    W_vertices : (n, k) float64
+        Coordinates of the source's vertices (the result is ``W_vertices @ C``).
+    cage_v, cage_f : (k, 3) float64 and (c, 3) int64
+        The source cage (faces as :func:`cagekit.bind` oriented them).
+    box_cage : (k, 3) float64
+        The cage after the coarse stage (the bounding boxes mapped onto each other).
+    energy : CageEnergy
+    weights : dict of str to float
+    """
+
+    W_vertices: np.ndarray
+    cage_v: np.ndarray
+    cage_f: np.ndarray
+    box_cage: np.ndarray
+    energy: CageEnergy
+    weights: dict
+
+    @classmethod
+    def create(cls, source, target, cage, *, symmetry=None, landmarks=None, weights=None,
+               samples=2000, shape_points=500, reference="aligned", coords="mvc",
+               seed=0) -> CageProblem:
+        """Sample, bind and set up the energy of one pair (all arrays in unit frames).
+
+        Parameters
+        ----------
+        source, target : (V, F) pairs of (n, 3) float64 and (m, 3) int64
+            Normalised on their own (``F`` empty for a point cloud).
+        cage : (cage_v, cage_f) pair
+            The source cage in the source's unit frame, checked already.
+        symmetry, weights, samples, shape_points, reference, coords, seed
+            As :func:`deform` takes them.
+        landmarks : (source points (l, 3), target points (l, 3)), optional
+            In the unit frames.
+        """
+        _check_options(symmetry, reference, {"samples": samples,
+                                             "shape_points": shape_points})
+        weights = _weights(weights, landmarks, symmetry, reference)
+        (Vs_n, Fs), (Vt_n, Ft) = source, target
+        src_lm, tgt_lm = (None, None) if landmarks is None else landmarks
+        rng = np.random.default_rng(seed)
+        S = _samples_of("source", Vs_n, Fs, samples, int(rng.integers(2**31)))
+        T = _samples_of("target", Vt_n, Ft, samples, int(rng.integers(2**31)))
+        used, own, index, mask = _shape_rows(Vs_n, Fs, shape_points, rng)
+        parts = [Vs_n, S] + ([src_lm] if src_lm is not None else [])
+        binding = bind(np.concatenate(parts), *cage, method=coords, check=False)
+        W = binding.weights
+        n, s = len(Vs_n), len(S)
+        W_samples = W[n:n + s]
+        W_landmarks = W[n + s:] if src_lm is not None else None
+        W_shape = np.ascontiguousarray(W[:n][used])
+        box_cage = binding.cage_v * box_scale(Vs_n, Vt_n)
+        reference_cage = box_cage if reference == "aligned" else binding.cage_v
+        shape_ref = losses.shape_reference(W_shape @ reference_cage, own, index, mask)
+        energy = CageEnergy(W_samples, T, W_shape, shape_ref, binding.cage_f,
+                            reference_cage, weights, symmetry, W_landmarks, tgt_lm)
+        return cls(W[:n], binding.cage_v, binding.cage_f, box_cage, energy, weights)
+
+
+@dataclass
+class CageSolution:
+    """What :func:`solve` returns (unit frames: the deformed cage in the target's).
+
+    Attributes
+    ----------
+    vertices : (n, 3) float64
+        The deformed source.
+    deformed_cage : (k, 3) float64
+    losses : dict of str to float
+        Each active term's unweighted value at the end.
+    initial_energy, energy : float
+        The weighted sum at the start and at the end.
+    evaluations : int
+    """
+
+    vertices: np.ndarray
+    deformed_cage: np.ndarray
+    losses: dict
+    initial_energy: float
+    energy: float
+    evaluations: int
+
+
+def solve(problem: CageProblem, start=None, *, max_evaluations: int = 60,
+          tolerance: float = 1e-7, progress=None) -> CageSolution:
+    """Minimise a :class:`CageProblem`'s energy over the cage by L-BFGS.
+
+    Parameters
+    ----------
+    problem : CageProblem
+    start : (k, 3) float64, optional
+        The deformed cage to start from, in the target's unit frame; default the
+        box-aligned cage (``problem.box_cage``).
+    max_evaluations, tolerance, progress
+        As :func:`deform` takes them.
+
+    Returns
+    -------
+    CageSolution
+    """
+    if int(max_evaluations) < 1:
+        raise InputError(f"max_evaluations must be at least 1, got {max_evaluations}")
+    C0 = problem.box_cage if start is None else start
+    if C0.shape != problem.cage_v.shape:
+        raise InputError(f"initial cage has {len(C0)} vertices, the cage "
+                         f"{len(problem.cage_v)}")
+    initial, _, _ = problem.energy.evaluate(C0)
+    minimum = minimise(problem.energy, C0, max_evaluations, tolerance, progress)
+    total, _, terms = problem.energy.evaluate(minimum.x)
+    return CageSolution(problem.W_vertices @ minimum.x, minimum.x, terms, initial, total,
+                        minimum.evaluations)
 
 
 def _nricp(Vs_box, Fs, Vt_n, Ft):
@@ -444,33 +564,25 @@ def deform(source, target, cage=None, *, method: str = "cage", symmetry: str | N
     start = time.perf_counter()
     if method not in METHODS:
         raise InputError(f"unknown method {method!r}; available: {', '.join(METHODS)}")
-    if reference not in REFERENCES:
-        raise InputError(f"reference must be one of {', '.join(REFERENCES)}, got "
-                         f"{reference!r}")
-    if symmetry is not None and symmetry not in losses.AXES:
-        raise InputError(f"symmetry must be x, y, z or None, got {symmetry!r}")
     if initial_cage is not None and method != "cage":
         raise InputError("initial_cage applies to method cage only")
-    weights = _weights(weights, landmarks, symmetry, reference)
-    for name, value in (("samples", samples), ("shape_points", shape_points),
-                        ("max_evaluations", max_evaluations)):
-        if int(value) < 1:
-            raise InputError(f"{name} must be at least 1, got {value}")
+    if initial_cage is not None and cage is None:
+        raise InputError("initial_cage needs the cage it deforms (cage=...)")
+    _check_options(symmetry, reference, {"samples": samples, "shape_points": shape_points,
+                                         "max_evaluations": max_evaluations})
+    _weights(weights, landmarks, symmetry, reference)  # refuse bad weights before any work
     Vs, Fs = as_shape(source, name="source")
     Vt, Ft = as_shape(target, name="target")
-    Vs_n, cs, ss = normalize(Vs)
-    Vt_n, ct, st = normalize(Vt)
-
-    def to_target(X):
-        return X * st + ct
-
-    result = DeformResult(vertices=Vs, faces=Fs, method=method)
+    fs, ft = Frame.of(Vs), Frame.of(Vt)
+    Vs_n, Vt_n = fs.to_unit(Vs), ft.to_unit(Vt)
+    result = DeformResult(vertices=Vs, faces=Fs, method=method, source_frame=fs,
+                          target_frame=ft)
     if method == "scale":
-        result.vertices = to_target(Vs_n * box_scale(Vs_n, Vt_n))
+        result.vertices = ft.to_world(Vs_n * box_scale(Vs_n, Vt_n))
     elif method == "nricp":
-        result.vertices = to_target(_nricp(Vs_n * box_scale(Vs_n, Vt_n), Fs, Vt_n, Ft))
+        result.vertices = ft.to_world(_nricp(Vs_n * box_scale(Vs_n, Vt_n), Fs, Vt_n, Ft))
     else:
-        lm = _landmarks(landmarks, cs, ss, ct, st)
+        lm = _landmarks_in_frames(landmarks, fs, ft)
         if cage is None:
             from cagekit.fitting import fit_cage
 
@@ -480,27 +592,19 @@ def deform(source, target, cage=None, *, method: str = "cage", symmetry: str | N
                 cage_v, cage_f = cage
             except (TypeError, ValueError):
                 raise InputError("cage must be a (vertices, faces) pair") from None
-            cage_n = (as_vertices(cage_v, "cage vertices") - cs) / ss
+            cage_n = fs.to_unit(as_vertices(cage_v, "cage vertices"))
             cage_f = check_cage(cage_n, cage_f, intersections=check)
             warn_outside(Vs_n, cage_n, cage_f, shape="the source", cage="the given cage")
         C_start = None
         if initial_cage is not None:
-            if cage is None:
-                raise InputError("initial_cage needs the cage it deforms (cage=...)")
-            C_start = (as_vertices(initial_cage, "initial cage vertices") - ct) / st
-            if C_start.shape != cage_n.shape:
-                raise InputError(f"initial cage has {len(C_start)} vertices, the cage "
-                                 f"{len(cage_n)}")
-        X, cage_n, cage_f, C, terms, (initial, total), evaluations = _cage_method(
-            Vs_n, Fs, Vt_n, Ft, cage_n, cage_f, weights, symmetry, lm, samples,
-            shape_points, max_evaluations, tolerance, seed, coords, reference, progress,
-            C_start)
-        result.vertices = to_target(X)
-        result.cage_v, result.cage_f = cage_n * ss + cs, cage_f
-        result.deformed_cage_v = to_target(C)
-        result.losses, result.weights = terms, weights
-        result.initial_energy, result.energy = initial, total
-        result.iterations = evaluations
+            C_start = ft.to_unit(as_vertices(initial_cage, "initial cage vertices"))
+        problem = CageProblem.create(
+            (Vs_n, Fs), (Vt_n, Ft), (cage_n, cage_f), symmetry=symmetry,
+            landmarks=None if lm[0] is None else lm, weights=weights, samples=samples,
+            shape_points=shape_points, reference=reference, coords=coords, seed=seed)
+        solution = solve(problem, C_start, max_evaluations=max_evaluations,
+                         tolerance=tolerance, progress=progress)
+        result.set_solution(problem, solution)
     if not np.isfinite(result.vertices).all():
         raise FloatingPointError(f"method {method} produced NaN or inf positions")
     result.seconds = time.perf_counter() - start

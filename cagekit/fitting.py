@@ -97,15 +97,15 @@ def _as_shape(shape_v, shape_f):
 
 def _frame(v):
     """Bounding-box centre and diagonal of a shape (the fitting frame's unit)."""
-    from cagekit.frame import bounding_box, bounding_box_diagonal
+    from cagekit.frame import Frame
 
     try:
-        centre, extent = bounding_box(v)
+        frame = Frame.of(v, unit="diagonal")
     except InputError as exc:
         if "coincide" in exc.problem:
             raise InputError("all points of the shape coincide: nothing to cage") from None
         raise
-    return centre, bounding_box_diagonal(extent)
+    return frame.centre, frame.scale
 
 
 def _samples(v, f, n, seed):

@@ -51,7 +51,7 @@ from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
 from cagekit.errors import InputError
-from cagekit.frame import normalize
+from cagekit.frame import Frame
 from cagekit.geometry import (
     as_faces,
     as_shape,
@@ -204,7 +204,8 @@ def dcotlap(V_src: ArrayLike, F_src: ArrayLike, V_out: ArrayLike) -> float:
     return float(np.mean(np.square(L @ (V_out - V_src))))
 
 
-def evaluate(source, target, deformed, n_samples: int = 5000, seed: int = 0) -> dict:
+def evaluate(source, target, deformed, n_samples: int = 5000, seed: int = 0,
+             frames=None) -> dict:
     """CD and dCotLap of a deformed source against a target, in the paper's frames.
 
     The target is normalised on its own; the deformed source is mapped by the target's
@@ -227,6 +228,9 @@ def evaluate(source, target, deformed, n_samples: int = 5000, seed: int = 0) -> 
     seed : int, optional
         Sampling seed, non-negative; the two surfaces get independent streams derived
         from it (see :func:`chamfer`).
+    frames : (source Frame, target Frame), optional
+        The shapes' unit frames (:meth:`cagekit.frame.Frame.of`) when the caller has them
+        already (``DeformResult.source_frame``, ``target_frame``); computed otherwise.
 
     Returns
     -------
@@ -260,9 +264,8 @@ def evaluate(source, target, deformed, n_samples: int = 5000, seed: int = 0) -> 
         raise InputError("the source must be a mesh with faces (dCotLap needs them)")
     if len(Fd) == 0:
         Fd = Fs
-    Vs_n, _, _ = normalize(Vs)
-    Vt_n, center, scale = normalize(Vt)
-    Vd_t = (Vd - center) / scale
+    fs, ft = (Frame.of(Vs), Frame.of(Vt)) if frames is None else frames
+    Vs_n, Vt_n, Vd_t = fs.to_unit(Vs), ft.to_unit(Vt), ft.to_unit(Vd)
     cd = chamfer(Vd_t, Fd, Vt_n, Ft, n_samples=n_samples, seed=seed)
     dist = dcotlap(Vs_n, Fs, Vd_t)
     return {

@@ -25,15 +25,20 @@ import torch
 
 from cagekit.cage import check_cage, self_intersecting_faces
 from cagekit.coords import bind
-from cagekit.deformation import DeformResult
-from cagekit.deformation import deform as optimise
+from cagekit.coords.binding import warn_outside
+from cagekit.deformation import CageProblem, DeformResult, solve
 from cagekit.errors import CagekitWarning, InputError
-from cagekit.frame import normalize
+from cagekit.frame import Frame
 from cagekit.geometry import as_shape
 from cagekit.sampling import surface_samples
 from cagekit_learn.networks import NeuralCages
 
 __all__ = ["predict", "predict_fixed_source", "predict_cages", "deform_with_model"]
+
+#: what ``refine_options`` may hold: the problem's options and the solver's
+_SOLVE_OPTIONS = ("max_evaluations", "tolerance", "progress")
+_REFINE_OPTIONS = {"symmetry", "weights", "samples", "shape_points", "reference", "coords",
+                   *_SOLVE_OPTIONS}
 
 
 def predict(model: NeuralCages, source_points, target_points) -> tuple[np.ndarray, np.ndarray]:
@@ -98,12 +103,12 @@ def predict_fixed_source(model: NeuralCages, target_points) -> tuple[np.ndarray,
 def _predicted(model, Vs, Fs, Vt, Ft, points, seed):
     """Normalise both shapes, sample them as in training and run the model.
 
-    Returns ``(Vs_n, (cs, ss), (ct, st), cage_n, deformed_n)``: the normalised source,
-    both normalisations, and the two cages in the normalised source and target frames.
+    Returns ``(fs, ft, Vs_n, Vt_n, cage_n, deformed_n)``: both unit frames, both shapes
+    in them, and the two cages in the source's and the target's unit frames.
     """
     points = 1024 if points is None else int(points)
-    Vs_n, cs, ss = normalize(Vs)
-    Vt_n, ct, st = normalize(Vt)
+    fs, ft = Frame.of(Vs), Frame.of(Vt)
+    Vs_n, Vt_n = fs.to_unit(Vs), ft.to_unit(Vt)
     fixed = getattr(model, "fixed_source", None)
     config = getattr(model, "config", None)
     rows = getattr(config, "fixed_source_rows", None)
@@ -117,7 +122,7 @@ def _predicted(model, Vs, Fs, Vt, Ft, points, seed):
     else:
         S = surface_samples(Vs_n, Fs, points, seed=seed)
         cage_n, deformed_n = predict(model, S, T)
-    return Vs_n, (cs, ss), (ct, st), cage_n, deformed_n
+    return fs, ft, Vs_n, Vt_n, cage_n, deformed_n
 
 
 def predict_cages(model: NeuralCages, source, target, *, points: int | None = None,
@@ -142,9 +147,8 @@ def predict_cages(model: NeuralCages, source, target, *, points: int | None = No
     """
     Vs, Fs = as_shape(source, name="source")
     Vt, Ft = as_shape(target, name="target")
-    _, (cs, ss), (ct, st), cage_n, deformed_n = _predicted(model, Vs, Fs, Vt, Ft, points,
-                                                           seed)
-    return cage_n * ss + cs, deformed_n * st + ct
+    fs, ft, _, _, cage_n, deformed_n = _predicted(model, Vs, Fs, Vt, Ft, points, seed)
+    return fs.to_world(cage_n), ft.to_world(deformed_n)
 
 
 def deform_with_model(model: NeuralCages, source, target, *, points: int | None = None,
@@ -166,7 +170,10 @@ def deform_with_model(model: NeuralCages, source, target, *, points: int | None 
         Then optimise the cage per pair (:func:`cagekit.deform` with the predicted cage,
         started from the predicted deformation).
     **refine_options
-        Passed to :func:`cagekit.deform` when refining (``symmetry``, ``weights``, ...).
+        When refining, the options of :func:`cagekit.deform` that tune the optimisation
+        (``symmetry``, ``weights``, ``samples``, ``shape_points``, ``reference``,
+        ``coords``, ``max_evaluations``, ``tolerance``, ``progress``); the refinement runs
+        in the unit frames the prediction is in (:class:`cagekit.deformation.CageProblem`).
 
     Returns
     -------
@@ -185,28 +192,34 @@ def deform_with_model(model: NeuralCages, source, target, *, points: int | None 
     samples otherwise.
     """
     start = time.perf_counter()
+    unknown = set(refine_options) - _REFINE_OPTIONS
+    if unknown:
+        raise InputError(f"unknown refine option(s) {', '.join(sorted(unknown))}; options: "
+                         f"{', '.join(sorted(_REFINE_OPTIONS))}")
     Vs, Fs = as_shape(source, name="source")
     Vt, Ft = as_shape(target, name="target")
-    Vs_n, (cs, ss), (ct, st), cage_n, deformed_n = _predicted(model, Vs, Fs, Vt, Ft,
-                                                              points, seed)
-    cage_f = model.cage_f.cpu().numpy()
-    cage_v, deformed_v = cage_n * ss + cs, deformed_n * st + ct
-    crossing = int(self_intersecting_faces(
-        cage_n, check_cage(cage_n, cage_f, intersections=False)).sum())
+    fs, ft, Vs_n, Vt_n, cage_n, deformed_n = _predicted(model, Vs, Fs, Vt, Ft, points, seed)
+    cage_f = check_cage(cage_n, model.cage_f.cpu().numpy(), intersections=False)
+    crossing = int(self_intersecting_faces(cage_n, cage_f).sum())
     if crossing:
         warnings.warn(CagekitWarning(f"the model's cage for the source intersects itself "
                                      f"({crossing} of {len(cage_f)} faces): the result may "
                                      "fold there"), stacklevel=2)
-    if refine:
-        result = optimise((Vs, Fs), (Vt, Ft), (cage_v, cage_f), seed=seed,
-                          initial_cage=deformed_v, check=False, **refine_options)
+    result = DeformResult(vertices=Vs, faces=Fs, method="learned", cage_f=cage_f,
+                          source_frame=fs, target_frame=ft)
+    if refine:  # the per-pair optimisation from the prediction, in the unit frames
+        warn_outside(Vs_n, cage_n, cage_f, shape="the source", cage="the model's cage")
+        solving = {k: refine_options.pop(k) for k in _SOLVE_OPTIONS if k in refine_options}
+        problem = CageProblem.create((Vs_n, Fs), (Vt_n, Ft), (cage_n, cage_f), seed=seed,
+                                     **refine_options)
+        result.set_solution(problem, solve(problem, deformed_n, **solving))
         result.method = "learned+refine"
-        result.seconds = time.perf_counter() - start
-        return result
-    binding = bind(Vs_n, cage_n, cage_f, check=False)
-    X = binding.deform(deformed_n) * st + ct
-    if not np.isfinite(X).all():
+    else:
+        binding = bind(Vs_n, cage_n, cage_f, check=False)
+        result.vertices = ft.to_world(binding.deform(deformed_n))
+        result.cage_v, result.cage_f = fs.to_world(cage_n), binding.cage_f
+        result.deformed_cage_v = ft.to_world(deformed_n)
+    if not np.isfinite(result.vertices).all():
         raise FloatingPointError("the model produced NaN or inf positions")
-    return DeformResult(vertices=X, faces=Fs, method="learned", cage_v=cage_v,
-                        cage_f=binding.cage_f, deformed_cage_v=deformed_v,
-                        seconds=time.perf_counter() - start)
+    result.seconds = time.perf_counter() - start
+    return result

@@ -704,15 +704,3 @@ def train(config: TrainConfig, resume: bool = False, progress: bool = True,
     seconds = time.perf_counter() - start
     return TrainResult(net, step, step // steps_per_epoch, skipped, last, seconds,
                        trained_pairs / seconds if seconds > 0 else float("nan"))
-
-
-def main(argv=None) -> None:
-    """``python -m cagekit_learn.train ...`` (or under torchrun): ``cagekit train ...``."""
-    from cagekit.cli import main as cli
-
-    cli(["train", *(sys.argv[1:] if argv is None else argv)], prog_name="cagekit")
-
-
-if __name__ == "__main__":
-    main()
-

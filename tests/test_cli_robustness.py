@@ -168,7 +168,7 @@ def test_library_warnings_are_one_line_each(tmp_path):
 def run_command_doing(statement):
     """Run a one-statement command built with cagekit's Command class, as ``demo``."""
     code = ("import ctypes, warnings, click\n"
-            "from cagekit.cli import Command\n"
+            "from cagekit.cli.common import Command\n"
             "@click.command(cls=Command)\n"
             "def cmd():\n"
             f"    {statement}\n"

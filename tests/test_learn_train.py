@@ -145,7 +145,7 @@ def test_checkpoints_are_written_atomically(tmp_path, monkeypatch):
 
 
 def _train_command(run_dir, *extra):
-    return [sys.executable, "-m", "cagekit_learn.train", *TINY_ARGS, "-o", str(run_dir),
+    return [sys.executable, "-m", "cagekit.cli", "train", *TINY_ARGS, "-o", str(run_dir),
             "--checkpoint-every", "1", *extra]
 
 

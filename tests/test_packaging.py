@@ -29,7 +29,7 @@ def test_the_command_line_starts_without_the_heavy_libraries():
 
 def test_the_command_lines_choices_are_the_librarys():
     import cagekit
-    from cagekit.cli import COORDINATE_METHODS, FIT_METHODS, TEMPLATE_FACES
+    from cagekit.cli.common import COORDINATE_METHODS, FIT_METHODS, TEMPLATE_FACES
     from cagekit.coords.binding import METHODS
     from cagekit.fitting import METHODS as FITTING
     from cagekit.fitting import TEMPLATE_FACES as FITTING_TEMPLATE_FACES

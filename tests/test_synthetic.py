@@ -10,7 +10,8 @@ from click.testing import CliRunner
 from scipy.spatial import cKDTree
 
 import cagekit
-from cagekit.cli import _SYNTH_FAMILIES, main
+from cagekit.cli import main
+from cagekit.cli.synth import FAMILIES as SYNTH_FAMILIES
 from cagekit.datasets import synthetic
 from cagekit.datasets.synthetic import FAMILIES, chair, family, table, vase
 from cagekit.io import load_mesh
@@ -131,7 +132,7 @@ def test_family():
         V2, F2 = table(seed=4 + i)
         assert np.array_equal(V, V2) and np.array_equal(F, F2)
     assert set(FAMILIES) == {"chairs", "tables", "vases"}
-    assert tuple(FAMILIES) == _SYNTH_FAMILIES
+    assert tuple(FAMILIES) == SYNTH_FAMILIES
     with pytest.raises(ValueError, match="sofas"):
         next(family("sofas", 1))
 

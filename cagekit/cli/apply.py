@@ -1,0 +1,106 @@
+"""``cagekit apply``: deform a shape by moving its cage (load, bind, map, write)."""
+
+from __future__ import annotations
+
+import time
+
+import click
+
+from cagekit.cli.common import (
+    COORDINATE_METHODS,
+    bind_with_progress,
+    check_output,
+    debug_option,
+    emit_json,
+    json_option,
+    shape_writer,
+    start_command,
+)
+from cagekit.errors import InputError
+
+
+@click.command(short_help="Deform a mesh or point cloud by moving its cage.")
+@click.argument("mesh", type=click.Path(dir_okay=False))
+@click.argument("cage", type=click.Path(dir_okay=False))
+@click.argument("deformed_cage", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", "out", required=True, type=click.Path(dir_okay=False),
+              help="Deformed shape to write (mesh or point cloud, format from extension).")
+@click.option("--coords", type=click.Choice(list(COORDINATE_METHODS)), default="mvc",
+              show_default=True, help="Cage coordinates (mean value coordinates).")
+@json_option
+@debug_option
+@click.pass_context
+def apply(ctx, mesh, cage, deformed_cage, out, coords, as_json):
+    """Deform MESH by moving its CAGE to DEFORMED_CAGE.
+
+    MESH is a mesh or a point cloud; CAGE a closed triangle mesh around it; DEFORMED_CAGE
+    the same cage with moved vertices (same count and order; if it has faces they must
+    be CAGE's). The points are bound once to CAGE with generalised barycentric
+    coordinates and mapped through DEFORMED_CAGE; the result, with MESH's faces, is
+    written to OUT.
+
+    \b
+    Example:
+      cagekit apply shape.obj cage.obj cage_deformed.obj -o deformed.obj
+    """
+    import numpy as np
+
+    from cagekit import io
+    from cagekit.cage import check_cage
+    from cagekit.coords.binding import warn_outside
+    from cagekit.geometry import face_areas
+
+    start_command(ctx)
+    check_output(out, (mesh, cage, deformed_cage))
+    seconds = {}
+
+    t0 = time.perf_counter()
+    V, F = io.load_shape(mesh)
+    write = shape_writer(out, has_faces=len(F) > 0)
+    CV, CF = io.load_mesh(cage)
+    try:
+        face_areas(CV, CF)  # areas that overflow would be reported as "zero area" below
+    except InputError as exc:
+        raise InputError(exc.problem, cage) from None
+    faces = check_cage(CV, CF, name=cage)  # closed, 2-manifold, oriented (flipped outward)
+    DV, DF = io.load_shape(deformed_cage)
+    if len(DV) != len(CV):
+        raise InputError(f"{deformed_cage} has {len(DV)} vertices but {cage} has "
+                         f"{len(CV)}: the deformed cage must have the cage's vertices "
+                         "(same count and order)")
+    if len(DF) and (DF.shape != CF.shape or not np.array_equal(DF, CF)):
+        raise InputError(f"its faces differ from those of {cage}; the deformed cage must "
+                         "be the same mesh with moved vertices", deformed_cage)
+    seconds["load"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    deform = bind_with_progress(V, CV, faces, coords)
+    seconds["bind"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    outside = warn_outside(V, CV, faces, shape=mesh, cage=cage)
+    seconds["check"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    out_v = deform(DV)
+    seconds["deform"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    write(out, out_v, F)
+    seconds["write"] = time.perf_counter() - t0
+
+    if as_json:
+        emit_json({
+            "output": out,
+            "n_points": len(V),
+            "n_faces": len(F),
+            "n_cage_vertices": len(CV),
+            "coords": coords,
+            "encloses": outside == 0,
+            "outside": outside,
+            "seconds": seconds,
+        })
+    else:
+        kind = "vertices" if len(F) else "points"
+        click.echo(f"wrote {out}: {len(V)} {kind} deformed by a {len(CV)}-vertex cage "
+                   f"({sum(seconds.values()):.2f} s)")

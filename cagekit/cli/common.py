@@ -1,0 +1,331 @@
+"""What every command of ``cagekit`` (and every application in ``apps/``) shares.
+
+Error handling, output checks, JSON, progress and the shared options. It imports only the
+core (lazily, so that ``--help`` stays fast). The rules (docs/architecture.md):
+
+- exit status 0 on success;
+- bad input (a :class:`cagekit.errors.InputError`, or a usage error) exits with status 2
+  and prints exactly one line on stderr that names the file and the problem; the
+  traceback is shown only with ``--debug`` (accepted before or after the command name);
+- other expected failures (an ``OSError`` while writing, say) print one line and exit 1;
+- an output that resolves to one of the inputs is refused (status 2) before any work;
+- outputs are written atomically by the library (temporary file, then rename);
+- NumPy floating-point warnings (overflow...) are silenced (``numpy.errstate``) so that
+  stderr carries only these lines; the library's own checks report such input;
+- every other warning is one line, ``cagekit CMD: warning: ...`` (cagekit's own
+  :class:`~cagekit.errors.CagekitWarning`, or another library's, named after the message);
+  ``--debug`` shows Python's usual form;
+- SIGINT (Ctrl-C) ends the command with one line, ``interrupted``, and status 130; outputs
+  being written are removed (they are atomic), folders the command made are removed when
+  empty;
+- a crash in native code (a segmentation fault in a compiled library, a bug) prints
+  Python's fault handler report (the Python call that crashed) instead of dying silently;
+- ``--json`` prints one JSON object on stdout and nothing else there;
+- long work shows a progress bar on stderr, only when stderr is a terminal.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import sys
+import traceback
+
+import click
+
+from cagekit.errors import InputError
+from cagekit.progress import bar_callback, progress_bar, progress_enabled
+
+__all__ = ["BIND_CHUNK", "COORDINATE_METHODS", "FIT_METHODS", "TEMPLATE_FACES", "Command",
+           "FiniteFloatRange", "Group", "Interrupted", "OneLineErrors", "bar_callback",
+           "bind_with_progress", "check_output", "debug_option", "emit_json", "json_option",
+           "one_line", "preview_up_option", "progress_bar", "progress_enabled", "same_file",
+           "shape_writer", "start_command"]
+
+#: points bound per step when a progress bar is shown
+BIND_CHUNK = 20_000
+
+#: choices of the library (:data:`cagekit.coords.binding.METHODS`,
+#: :data:`cagekit.fitting.METHODS`), listed here so that starting the command line imports
+#: neither numba nor libigl (tests check that they match)
+COORDINATE_METHODS = ("mvc",)
+FIT_METHODS = ("wrap", "template")
+TEMPLATE_FACES = 80
+
+
+def one_line(text: str) -> str:
+    """Collapse any whitespace (newlines included) so a message fits on one line."""
+    return " ".join(str(text).split())
+
+
+def _debug_requested(args) -> bool:
+    return "--debug" in args or os.environ.get("CAGEKIT_DEBUG", "") not in ("", "0")
+
+
+class Interrupted(BaseException):
+    """SIGINT, raised instead of KeyboardInterrupt so that click prints nothing for it."""
+
+
+class OneLineErrors:
+    """Mixin for a click command or group: errors are one line on stderr, with fixed exit
+    statuses (0 success, 1 failure, 2 bad input or usage, 130 interrupted); ``--debug``
+    (or ``CAGEKIT_DEBUG=1``) adds the traceback. Warnings are one line each, SIGINT one
+    line. The applications in ``apps/`` use it too.
+    """
+
+    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True,
+             **extra):
+        """Run the command line; exit with 0, 1 (failure) or 2 (bad input or usage)."""
+        import numpy as np
+
+        args = list(sys.argv[1:] if args is None else args)
+        _CURRENT.clear()
+        debug = _debug_requested(args)
+        prog = prog_name or "cagekit"
+        where = prog
+        _report_native_crashes()
+        with _one_line_warnings(prog, debug), _sigint_raises(Interrupted):
+            try:
+                try:
+                    with np.errstate(all="ignore"):  # no NumPy warnings on stderr
+                        rv = super().main(args, prog_name=prog, complete_var=complete_var,
+                                          standalone_mode=False, **extra)
+                except click.exceptions.NoArgsIsHelpError as exc:
+                    click.echo(exc.ctx.get_help())
+                    rv = 0
+                code = rv if isinstance(rv, int) else 0
+            except click.UsageError as exc:
+                if exc.ctx is not None:
+                    where = exc.ctx.command_path
+                hint = f" (see '{where} --help')"
+                error, code, message = exc, exc.exit_code, f"{exc.format_message()}{hint}"
+            except (click.Abort, KeyboardInterrupt, Interrupted) as exc:
+                error, code, message = exc, 130, "interrupted"
+            except click.ClickException as exc:
+                error, code, message = exc, exc.exit_code, exc.format_message()
+            except InputError as exc:
+                error, code, message = exc, 2, str(exc)
+            except OSError as exc:
+                error, code, message = exc, 1, _os_error_message(exc)
+            except MemoryError as exc:
+                error, code, message = exc, 1, "out of memory"
+            except Exception as exc:  # noqa: BLE001  (a bug: one line, pointing at --debug)
+                error, code = exc, 1
+                message = f"internal error: {type(exc).__name__}: {exc}"
+                if not debug:
+                    message += " (run with --debug for the traceback)"
+            else:
+                if standalone_mode:
+                    sys.exit(code)
+                return code
+            if debug:
+                traceback.print_exception(error, file=sys.stderr)
+            where = _CURRENT.get("command", where)
+            # on a terminal, a carriage return overwrites the "^C" it echoed
+            start = "\r" if code == 130 and progress_enabled() else ""
+            click.echo(f"{start}{where}: error: {one_line(message)}", err=True)
+        if standalone_mode:
+            sys.exit(code)
+        return code
+
+
+def _report_native_crashes() -> None:
+    """Enable Python's fault handler on the real stderr (once), so that a crash inside a
+    compiled library prints the Python call it happened in instead of nothing."""
+    import faulthandler
+
+    if faulthandler.is_enabled() or sys.__stderr__ is None:
+        return
+    try:
+        faulthandler.enable(file=sys.__stderr__, all_threads=False)
+    except (ValueError, OSError, AttributeError):  # no real file descriptor (embedded)
+        pass
+
+
+@contextlib.contextmanager
+def _one_line_warnings(prog: str, debug: bool):
+    """Show every warning as one line, ``<command>: warning: <message>``."""
+    import warnings
+
+    from cagekit.errors import CagekitWarning
+
+    with warnings.catch_warnings():
+        if not debug:
+            def show(message, category, filename, lineno, file=None, line=None):
+                text = one_line(message)
+                if not issubclass(category, CagekitWarning):
+                    text = f"{text} ({_package_of(filename)} {category.__name__})"
+                where = _CURRENT.get("command", prog)
+                click.echo(f"{where}: warning: {text}", err=True)
+
+            warnings.showwarning = show
+        yield
+
+
+def _package_of(filename: str) -> str:
+    """The top-level package a source file belongs to (for warnings from libraries)."""
+    parts = os.path.normpath(filename).split(os.sep)
+    for marker in ("site-packages", "dist-packages"):
+        if marker in parts[:-1]:
+            return parts[parts.index(marker) + 1].removesuffix(".py")
+    return os.path.basename(filename).removesuffix(".py")
+
+
+@contextlib.contextmanager
+def _sigint_raises(exception):
+    """SIGINT raises ``exception`` in the main thread while the block runs."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum, frame):
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C while unwinding
+        raise exception()
+
+    previous = signal.signal(signal.SIGINT, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _os_error_message(exc: OSError) -> str:
+    """``path: problem`` for an OSError, when it carries a file name."""
+    if exc.filename is not None:
+        problem = exc.strerror or str(exc)
+        return f"{os.fsdecode(exc.filename)}: {problem}"
+    return str(exc)
+
+
+#: the running command's name, for error lines ("cagekit apply: error: ...")
+_CURRENT: dict[str, str] = {}
+
+
+class Group(OneLineErrors, click.Group):
+    """A click group with cagekit's error handling (the ``cagekit`` group)."""
+
+
+class Command(OneLineErrors, click.Command):
+    """A stand-alone click command with cagekit's error handling (``cls=Command``)."""
+
+
+class FiniteFloatRange(click.FloatRange):
+    """click's FloatRange that also refuses NaN and infinities (which pass its bounds)."""
+
+    def convert(self, value, param, ctx):
+        """The number, or a usage error for NaN, inf or a value out of range."""
+        number = super().convert(value, param, ctx)
+        if not math.isfinite(number):
+            self.fail(f"{value!r} is not a finite number.", param, ctx)
+        return number
+
+
+def start_command(ctx: click.Context) -> None:
+    _CURRENT["command"] = ctx.command_path
+
+
+def same_file(a: str, b: str) -> bool:
+    """True if paths ``a`` and ``b`` name the same file (following links)."""
+    try:
+        if os.path.exists(a) and os.path.exists(b):
+            return os.path.samefile(a, b)
+    except OSError:
+        pass
+    return os.path.realpath(a) == os.path.realpath(b)
+
+
+def check_output(out: str, inputs, extensions=None) -> None:
+    """Refuse (InputError) an output that is an input, a folder, or in a missing folder."""
+    for path in inputs:
+        if path is not None and same_file(out, path):
+            raise InputError(f"refusing to overwrite the input file {path}; choose another "
+                             "output path", out)
+    if os.path.isdir(out):
+        raise InputError("is a folder; give an output file name", out)
+    folder = os.path.dirname(os.path.abspath(out))
+    if not os.path.isdir(folder):
+        raise InputError(f"output folder {folder} does not exist", out)
+    if extensions is not None:
+        ext = os.path.splitext(out)[1].lower()
+        if ext not in extensions:
+            raise InputError(f"unknown output format {ext or '(no extension)'!r}; "
+                             f"use one of {', '.join(sorted(extensions))}", out)
+
+
+def shape_writer(out: str, has_faces: bool):
+    """The :mod:`cagekit.io` function that writes ``out``, checked before any work.
+
+    A mesh goes to ``save_mesh`` when the extension is a mesh format, else to
+    ``save_points`` (its vertices only) when it is a point-cloud format (``.xyz``,
+    ``.npy``...); a point cloud goes to ``save_points``. Anything else is an InputError.
+    Returns ``writer(path, V, F)``.
+    """
+    from cagekit import io
+
+    ext = os.path.splitext(out)[1].lower()
+    mesh_exts = set(io.SUPPORTED_MESH_EXTENSIONS) - {".gltf"}  # save_mesh writes no GLTF
+    point_exts = set(io.SUPPORTED_POINT_EXTENSIONS)
+    if has_faces and ext in mesh_exts:
+        return io.save_mesh
+    if ext in point_exts:
+        return lambda path, V, F: io.save_points(path, V)
+    allowed = (mesh_exts | point_exts) if has_faces else point_exts
+    kind = "a mesh" if has_faces else "a point cloud"
+    raise InputError(f"cannot write {kind} as {ext or '(no extension)'!r}; use one of "
+                     f"{', '.join(sorted(allowed))}", out)
+
+
+def bind_with_progress(points, cage_v, cage_f, method: str):
+    """Bind points to a cage checked already; on a terminal, in chunks behind a progress bar.
+
+    Returns a function mapping new cage vertices ``(k, 3)`` to deformed points ``(n, 3)``.
+    The coordinates of a point do not depend on the other points, so chunking changes
+    nothing but the bar.
+    """
+    import numpy as np
+
+    from cagekit.coords import bind
+
+    if not progress_enabled() or len(points) <= BIND_CHUNK:
+        return bind(points, cage_v, cage_f, method=method, check=False).deform
+    bindings = []
+    with progress_bar("binding", "pt", total=len(points)) as bar:
+        for start in range(0, len(points), BIND_CHUNK):
+            chunk = points[start:start + BIND_CHUNK]
+            bindings.append(bind(chunk, cage_v, cage_f, method=method, check=False))
+            bar.update(len(chunk))
+    return lambda new_v: np.concatenate([b.deform(new_v) for b in bindings], axis=0)
+
+
+def emit_json(obj) -> None:
+    """Print one JSON object on stdout (non-finite floats become null)."""
+
+    def clean(x):
+        if isinstance(x, float) and not math.isfinite(x):
+            return None
+        if isinstance(x, dict):
+            return {k: clean(v) for k, v in x.items()}
+        if isinstance(x, (list, tuple)):
+            return [clean(v) for v in x]
+        return x
+
+    click.echo(json.dumps(clean(obj), allow_nan=False))
+
+
+debug_option = click.option(
+    "--debug", is_flag=True, expose_value=False, is_eager=True,
+    help="Show the full traceback on errors.",
+)
+preview_up_option = click.option(
+    "--up", type=click.Choice(["x", "y", "z"]), default="y", show_default=True,
+    help="Vertical axis of the shapes in the preview.",
+)
+json_option = click.option(
+    "--json", "as_json", is_flag=True,
+    help="Print one JSON object with the results on stdout (and nothing else there).",
+)

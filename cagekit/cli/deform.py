@@ -1,0 +1,311 @@
+"""``cagekit deform``: deform a source onto a target by moving its cage (or by a model)."""
+
+from __future__ import annotations
+
+import math
+import os
+
+import click
+
+from cagekit.cli.common import (
+    COORDINATE_METHODS,
+    bar_callback,
+    check_output,
+    debug_option,
+    emit_json,
+    json_option,
+    preview_up_option,
+    progress_bar,
+    shape_writer,
+    start_command,
+)
+from cagekit.errors import InputError
+
+
+def _parse_weights(ctx, param, values):
+    """``NAME=VALUE`` pairs of --weight into a dict, names and values checked."""
+    if not values:
+        return {}
+    from cagekit.deformation import DEFAULT_WEIGHTS
+
+    weights = {}
+    for text in values:
+        name, sep, value = text.partition("=")
+        name = name.strip()
+        try:
+            number = float(value)
+        except ValueError:
+            sep = ""
+        if not sep:
+            raise click.BadParameter(f"expected TERM=VALUE (for example cage=0.5), got {text!r}")
+        if name not in DEFAULT_WEIGHTS:
+            raise click.BadParameter(f"unknown term {name!r}; terms: "
+                                     f"{', '.join(DEFAULT_WEIGHTS)}")
+        if not (math.isfinite(number) and number >= 0):
+            raise click.BadParameter(f"the weight of {name} must be finite and >= 0, "
+                                     f"got {value!r}")
+        weights[name] = number
+    return weights
+
+
+def _deform_figures(source, target, result):
+    """CD and dCotLap of a result (dCotLap only for a source with faces), in the frames
+    the deformation used (``cagekit eval``'s definitions: each shape's own unit frame)."""
+    from cagekit.frame import Frame
+    from cagekit.metrics import chamfer, evaluate
+
+    frames = (result.source_frame or Frame.of(source[0]),
+              result.target_frame or Frame.of(target[0]))
+    if len(source[1]):
+        return evaluate(source, target, (result.vertices, source[1]), frames=frames)
+    ft = frames[1]
+    cd = chamfer(ft.to_unit(result.vertices), None, ft.to_unit(target[0]), target[1])
+    return {"cd": cd, "dcotlap": None, "cd_x1e2": cd * 1e2, "dcotlap_x1e3": None}
+
+
+def _load_model(path):
+    """(model, samples per shape) of a checkpoint; one clear line if torch is missing."""
+    try:
+        from cagekit_learn.train import load_model
+    except ImportError as exc:
+        raise InputError(f"--model needs the learned mode: pip install -e '.[learn]' ({exc})",
+                         path) from None
+    model, payload = load_model(path)
+    return model, int(payload.get("config", {}).get("points", 1024))
+
+
+def _deformed_cage_path(path: str) -> str:
+    stem, ext = os.path.splitext(path)
+    return f"{stem}_deformed{ext}"
+
+
+def _load_landmark_pair(src_path, tgt_path):
+    """The positions of the labels both files share, in the source file's order.
+
+    Labels in one file only (real files misspell a few) are left out, listed in one
+    warning line; fewer than 4 shared labels are refused.
+    """
+    import warnings
+
+    from cagekit.errors import CagekitWarning
+    from cagekit.landmarks import load_landmarks, match_landmarks
+
+    match = match_landmarks(load_landmarks(src_path), load_landmarks(tgt_path),
+                            source_name=src_path, target_name=tgt_path)
+    unmatched = match.unmatched(src_path, tgt_path)
+    if unmatched:
+        warnings.warn(CagekitWarning(unmatched), stacklevel=2)
+    return match.source, match.target
+
+
+@click.command(short_help="Deform SOURCE to take TARGET's shape by moving its cage.")
+@click.argument("source", type=click.Path(dir_okay=False))
+@click.argument("target", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", "out", required=True, type=click.Path(dir_okay=False),
+              help="Deformed source to write (in TARGET's frame and units).")
+@click.option("--method", type=click.Choice(["cage", "scale", "nricp"]), default="cage",
+              show_default=True,
+              help="cage: optimise the cage; scale: map the bounding boxes; nricp: "
+                   "trimesh's nricp_amberg (baselines).")
+@click.option("--cage", "cage_path", type=click.Path(dir_okay=False), default=None,
+              help="SOURCE's cage (closed, around it); fitted with fit-cage when left out.")
+@click.option("--faces", default=200, show_default=True,
+              type=click.IntRange(min=4, max=100_000),
+              help="Face budget of the fitted cage (without --cage).")
+@click.option("--save-cage", type=click.Path(dir_okay=False), default=None,
+              help="Write the source cage here and the deformed cage beside it "
+                   "(name + '_deformed').")
+@click.option("--symmetry", type=click.Choice(["x", "y", "z", "none"]), default="none",
+              show_default=True, help="Axis normal to SOURCE's plane of symmetry.")
+@click.option("--landmarks", nargs=2, type=click.Path(dir_okay=False), default=None,
+              metavar="SRC TGT",
+              help="Landmark files (.picked, .json, .csv) of SOURCE and TARGET; the labels "
+                   "they share (4 at least) replace Chamfer as the alignment term.")
+@click.option("--weight", "weights", multiple=True, callback=_parse_weights,
+              metavar="TERM=VALUE",
+              help="Energy weight (repeatable): chamfer, landmarks, p2f, normal, "
+                   "symmetry, cage.")
+@click.option("--reference", type=click.Choice(["aligned", "source"]), default="aligned",
+              show_default=True,
+              help="Shape and cage terms compare with the box-aligned source (stretch "
+                   "is free) or with the source as given (the paper's; cage weight 1).")
+@click.option("--coords", type=click.Choice(list(COORDINATE_METHODS)), default="mvc",
+              show_default=True, help="Cage coordinates.")
+@click.option("--preview", type=click.Path(dir_okay=False), default=None,
+              help="Draw source, target and result side by side (cages as wireframes) "
+                   "into this PNG.")
+@click.option("--model", "model_path", type=click.Path(), default=None,
+              help="A trained model (RUN_DIR or RUN_DIR/checkpoint.pt of `cagekit train`, "
+                   "needs cagekit[learn]): predict the cage and its deformation in one "
+                   "forward pass.")
+@click.option("--refine", is_flag=True,
+              help="With --model: then optimise the predicted cage per pair (as --method "
+                   "cage, started from the prediction).")
+@preview_up_option
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
+              help="Seed of the samples (and of the fitted cage).")
+@json_option
+@debug_option
+@click.pass_context
+def deform(ctx, source, target, out, method, cage_path, faces, save_cage, symmetry,
+           landmarks, weights, reference, coords, model_path, refine, preview, up, seed,
+           as_json):
+    """Deform SOURCE so that it takes TARGET's shape, keeping SOURCE's detail.
+
+    SOURCE is a mesh (or a point cloud, whose points move); TARGET a mesh or a point
+    cloud (noisy or coarse; a partial scan squashes SOURCE towards its seen side). With
+    --method cage (the default) SOURCE's cage is moved to minimise Chamfer distance to
+    TARGET plus the paper's shape-preservation and cage terms (see
+    cagekit/deformation.py); the result is written in TARGET's frame and units. --json
+    prints CD and dCotLap (as `cagekit eval`), each term's value, the iterations and
+    seconds.
+
+    \b
+    Example:
+      cagekit deform chair.obj tall_chair.obj -o out.obj --symmetry x --preview out.png
+    """
+    start_command(ctx)
+    outputs = _check_options(ctx, source, target, out, method, cage_path, save_cage,
+                             symmetry, landmarks, weights, model_path, refine, preview)
+    model = _load_model(model_path) if model_path else None
+    src, tgt, cage, pairs = _load_inputs(source, target, out, cage_path, landmarks)
+    write = shape_writer(out, has_faces=len(src[1]) > 0)
+    options = {"symmetry": None if symmetry == "none" else symmetry,
+               "weights": weights or None, "reference": reference, "coords": coords}
+    with progress_bar("deform", "eval",
+                      enabled=method == "cage" and (model is None or refine)) as bar:
+        try:
+            result = _run(src, tgt, cage, pairs, model, method, faces, refine, seed,
+                          options, bar_callback(bar))
+        except InputError as exc:
+            raise _blamed(exc, source, target, cage_path, landmarks) from None
+    write(out, result.vertices, result.faces)
+    _report(src, tgt, result, outputs, source, target, up, as_json)
+
+
+def _check_options(ctx, source, target, out, method, cage_path, save_cage, symmetry,
+                   landmarks, weights, model_path, refine, preview):
+    """Refuse option combinations and outputs before any work; returns the output paths."""
+    from cagekit import io
+
+    inputs = (source, target, cage_path, model_path, *(landmarks or ()))
+    check_output(out, inputs)
+    if method != "cage" and (cage_path or save_cage or landmarks or weights
+                             or symmetry != "none" or model_path):
+        raise click.UsageError("--cage, --save-cage, --landmarks, --weight, --symmetry and "
+                               "--model apply to --method cage only")
+    if refine and not model_path:
+        raise click.UsageError("--refine refines a prediction: it needs --model")
+    if model_path and (cage_path or landmarks):
+        raise click.UsageError("--model predicts the cage: --cage and --landmarks do not "
+                               "apply")
+    tuned = (weights or symmetry != "none"
+             or ctx.get_parameter_source("reference") != click.core.ParameterSource.DEFAULT)
+    if model_path and tuned and not refine:
+        raise click.UsageError("--weight, --symmetry and --reference tune the per-pair "
+                               "optimisation: with --model they need --refine")
+    outputs = {"out": out, "save_cage": save_cage, "preview": preview}
+    if save_cage is not None:
+        mesh_exts = set(io.SUPPORTED_MESH_EXTENSIONS) - {".gltf"}
+        for path in (save_cage, _deformed_cage_path(save_cage)):
+            check_output(path, inputs, extensions=mesh_exts)
+    if preview is not None:
+        check_output(preview, inputs, extensions={".png"})
+    paths = [out] + ([save_cage, _deformed_cage_path(save_cage)] if save_cage else []) + (
+        [preview] if preview else [])
+    if len({os.path.realpath(p) for p in paths}) < len(paths):
+        raise InputError("two outputs would be the same file", out)
+    return outputs
+
+
+def _load_inputs(source, target, out, cage_path, landmarks):
+    """The two shapes, the checked cage (or None) and the landmark pair (or None)."""
+    from cagekit import io
+    from cagekit.cage import check_cage
+    from cagekit.coords.binding import warn_outside
+
+    src = io.load_shape(source)
+    shape_writer(out, has_faces=len(src[1]) > 0)  # refuse a wrong format before reading on
+    tgt = io.load_shape(target)
+    cage = None
+    if cage_path is not None:
+        cage_v, cage_f = io.load_mesh(cage_path)
+        cage = (cage_v, check_cage(cage_v, cage_f, name=cage_path))
+        warn_outside(src[0], *cage, shape=source, cage=cage_path)
+    pairs = _load_landmark_pair(*landmarks) if landmarks else None
+    return src, tgt, cage, pairs
+
+
+def _run(src, tgt, cage, pairs, model, method, faces, refine, seed, options, progress):
+    """The deformation: per-pair (``cagekit.deform``) or by the model."""
+    import warnings
+
+    from cagekit.deformation import deform
+    from cagekit.errors import OutsideCageWarning
+
+    if model is not None:
+        from cagekit_learn.inference import deform_with_model
+
+        net, points = model
+        return deform_with_model(net, src, tgt, points=points, seed=seed, refine=refine,
+                                 **({**options, "progress": progress} if refine else {}))
+    # a given cage was checked by _load_inputs, with its file name in the messages
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", OutsideCageWarning)
+        return deform(src, tgt, cage, method=method, landmarks=pairs, faces=faces,
+                      seed=seed, check=False, progress=progress, **options)
+
+
+def _blamed(exc, source, target, cage_path, landmarks):
+    """The library's error with the file it is about (named by its first words)."""
+    if exc.path is not None:
+        return exc
+    low = exc.problem.lower()
+    if low.startswith("the source landmarks") and landmarks:
+        blamed = landmarks[0]
+    elif low.startswith("the target landmarks") and landmarks:
+        blamed = landmarks[1]
+    elif low.startswith("the source:"):
+        blamed = source
+    elif low.startswith("the target:"):
+        blamed = target
+    else:
+        blamed = (cage_path or source) if "cage" in low else f"{source}, {target}"
+    return InputError(exc.problem, blamed)
+
+
+def _report(src, tgt, result, outputs, source, target, up, as_json):
+    """Write the cages and the preview, then print the figures (a line or JSON)."""
+    from cagekit import io
+
+    save_cage, preview = outputs["save_cage"], outputs["preview"]
+    if save_cage is not None:
+        io.save_mesh(save_cage, result.cage_v, result.cage_f)
+        io.save_mesh(_deformed_cage_path(save_cage), result.deformed_cage_v, result.cage_f)
+    figures = _deform_figures(src, tgt, result)
+    dcot = figures["dcotlap_x1e3"]
+    method = result.method
+    caption = (f"{method}: CD x1e2 = {figures['cd_x1e2']:.3f}"
+               + ("" if dcot is None else f", dCotLap x1e3 = {dcot:.4f}")
+               + f" ({result.seconds:.2f} s)")
+    if preview is not None:
+        from cagekit.render import render_meshes
+
+        has_cage = result.cage_v is not None
+        render_meshes(
+            [src, tgt, (result.vertices, result.faces)], preview,
+            cages=[(result.cage_v, result.cage_f) if has_cage else None, None,
+                   (result.deformed_cage_v, result.cage_f) if has_cage else None],
+            titles=[f"source: {os.path.basename(source)}",
+                    f"target: {os.path.basename(target)}", f"result ({method})"],
+            caption=caption, up=up)
+    if as_json:
+        emit_json({"source": source, "target": target, "output": outputs["out"],
+                   "method": method,
+                   **{k: figures[k] for k in ("cd", "dcotlap", "cd_x1e2", "dcotlap_x1e3")},
+                   "losses": result.losses, "weights": result.weights,
+                   "energy": result.energy, "iterations": result.iterations,
+                   "cage_faces": None if result.cage_f is None else len(result.cage_f),
+                   "seconds": result.seconds})
+    else:
+        click.echo(f"wrote {outputs['out']}: {caption}")

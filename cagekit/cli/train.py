@@ -1,0 +1,136 @@
+"""``cagekit train``: train the learned cages; also ``torchrun -m cagekit.cli train``."""
+
+from __future__ import annotations
+
+import os
+
+import click
+
+from cagekit.cli.common import (
+    FiniteFloatRange,
+    debug_option,
+    emit_json,
+    json_option,
+    progress_enabled,
+    start_command,
+)
+from cagekit.errors import InputError
+
+
+@click.command(short_help="Train the learned cages (N_c, N_d) on a folder of meshes.")
+@click.argument("data", metavar="DATA_DIR")
+@click.option("-o", "--output", "run_dir", required=True, type=click.Path(file_okay=False),
+              help="Run folder: checkpoint.pt, log.csv (and tensorboard/ when installed).")
+@click.option("--epochs", default=100, show_default=True, type=click.IntRange(min=1))
+@click.option("--batch-size", default=8, show_default=True, type=click.IntRange(min=1),
+              help="Pairs per step (per process under torchrun).")
+@click.option("--lr", default=1e-3, show_default=True, type=FiniteFloatRange(min=0,
+              min_open=True), help="Adam's learning rate (N_c at a tenth of it).")
+@click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), default="auto",
+              show_default=True)
+@click.option("--resume", is_flag=True,
+              help="Continue the run in --output exactly where it stopped, with the "
+                   "same number of processes (its own settings; --epochs, --max-steps, "
+                   "--minutes and --device given again replace them).")
+@click.option("--points", default=1024, show_default=True,
+              type=click.IntRange(min=16, max=100_000),
+              help="Samples per shape.")
+@click.option("--bottleneck", default=256, show_default=True, type=click.IntRange(min=1),
+              help="Size of the PointNet code.")
+@click.option("--nc", type=click.Choice(["learned", "identity", "source-invariant"]),
+              default="learned", show_default=True, help="The N_c variant.")
+@click.option("--fixed-source", type=click.Path(dir_okay=False), default=None,
+              metavar="TEMPLATE_MESH",
+              help="Train with one fixed source: every pair is (TEMPLATE_MESH, a shape of "
+                   "DATA_DIR), each shape once per epoch (a character in rest pose and its "
+                   "poses). With --align l2 it must share the shapes' vertex order. It is "
+                   "never augmented; its samples are stored in the checkpoint.")
+@click.option("--source-cage", type=click.Path(dir_okay=False), default=None,
+              help="A fixed source cage (mesh file) instead of N_c, for a collection that "
+                   "shares one source. With --fixed-source it is in TEMPLATE_MESH's own "
+                   "frame (the cage drawn around it); without, in the paper's frame (the "
+                   "source normalised to [-1, 1]).")
+@click.option("--no-box-align", is_flag=True,
+              help="N_d offsets the source cage itself, not its box-aligned stretch.")
+@click.option("--symmetry", type=click.Choice(["x", "y", "z", "none"]), default="none",
+              show_default=True, help="Add the symmetry loss about this axis.")
+@click.option("--align", type=click.Choice(["chamfer", "l2"]), default="chamfer",
+              show_default=True,
+              help="Alignment loss; l2 needs a collection sampled in correspondence.")
+@click.option("--no-augment", is_flag=True, help="No anisotropic scaling augmentation.")
+@click.option("--checkpoint-every", default=200, show_default=True,
+              type=click.IntRange(min=1), help="Steps between checkpoints.")
+@click.option("--max-steps", default=None, type=click.IntRange(min=1),
+              help="Stop after this many steps in all.")
+@click.option("--minutes", default=None, type=FiniteFloatRange(min=0, min_open=True),
+              help="Stop (with a checkpoint) after this much training time.")
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0))
+@json_option
+@debug_option
+@click.pass_context
+def train(ctx, data, run_dir, epochs, batch_size, lr, device, resume, points, bottleneck,
+          nc, fixed_source, source_cage, no_box_align, symmetry, align, no_augment,
+          checkpoint_every, max_steps, minutes, seed, as_json):
+    """Train N_c and N_d (the paper's networks) on the meshes under DATA_DIR.
+
+    DATA_DIR is searched recursively for meshes (ShapeNet's layout works as is); each is
+    normalised and sampled once, cached in DATA_DIR/.cagekit-cache. `synthetic:chairs:300`
+    (or tables, vases) trains on procedural shapes instead. Scale out with
+    `torchrun --nproc-per-node N -m cagekit.cli train DATA_DIR -o RUN_DIR`.
+
+    With --fixed-source TEMPLATE_MESH the template is the source of every pair and the
+    shapes of DATA_DIR are the targets (the paper's human setting: poses of one character
+    with a consistent vertex order, --align l2); --source-cage is then a cage around the
+    template in the template's own frame.
+
+    \b
+    Example:
+      cagekit train synthetic:chairs:300 -o runs/chairs --epochs 50
+      cagekit deform a.obj b.obj --model runs/chairs -o out.obj
+      cagekit train poses/ --fixed-source rest.obj --source-cage rest_cage.obj \\
+          --align l2 -o runs/human
+    """
+    start_command(ctx)
+    try:
+        from cagekit_learn.networks import ModelConfig
+        from cagekit_learn.train import TrainConfig, load_source_cage
+        from cagekit_learn.train import train as run
+    except ImportError as exc:
+        raise InputError(f"training needs the learned mode: pip install -e '.[learn]' "
+                         f"({exc})") from None
+    model = ModelConfig(bottleneck=bottleneck, nc=nc, box_align=not no_box_align)
+    if source_cage is not None and not resume:  # a resumed run keeps its own cage
+        model.fixed_cage_v, model.fixed_cage_f = load_source_cage(source_cage,
+                                                                  template=fixed_source)
+    if os.path.exists(os.path.join(run_dir, "checkpoint.pt")) and not resume:
+        raise InputError("holds a checkpoint already: --resume to continue it, or choose "
+                         "another folder", run_dir)
+    if resume:  # what was not given again stays as the stopped run had it
+        default = click.core.ParameterSource.DEFAULT
+        if ctx.get_parameter_source("epochs") == default:
+            epochs = None
+        if ctx.get_parameter_source("device") == default:
+            device = None
+    config = TrainConfig(
+        data=data, run_dir=run_dir, epochs=epochs, batch_size=batch_size, lr=lr,
+        points=points, seed=seed, device=device, checkpoint_every=checkpoint_every,
+        symmetry=None if symmetry == "none" else symmetry, align=align,
+        augment=not no_augment, max_steps=max_steps, max_minutes=minutes,
+        model=model.to_dict(), fixed_source=fixed_source)
+    from cagekit.files import output_folder
+
+    with output_folder(run_dir):  # a run that fails before writing leaves no empty folder
+        result = run(config, resume=resume, progress=progress_enabled())
+    figures = {"run_dir": run_dir, "steps": result.step, "epochs": result.epoch,
+               "skipped_steps": result.skipped, "losses": result.last_losses,
+               "seconds": result.seconds, "pairs_per_second": result.pairs_per_second}
+    if int(os.environ.get("RANK", "0")) != 0:
+        return
+    if as_json:
+        emit_json(figures)
+    else:
+        loss = result.last_losses.get("loss", float("nan"))
+        click.echo(f"trained {result.step} steps ({result.pairs_per_second:.1f} pairs/s, "
+                   f"{result.skipped} skipped); last loss {loss:.4g}; wrote "
+                   f"{os.path.join(run_dir, 'checkpoint.pt')}")
+

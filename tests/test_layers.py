@@ -1,0 +1,82 @@
+"""The layers point one way: core < cagekit_learn < apps < command line (DESIGN.md).
+
+Read from the source (ast), so a lazy import inside a function counts as well. No module
+imports from a layer above its own, nor another module's private (``_name``) names. The
+applications may use the command line's shared rules, :mod:`cagekit.cli.common`, which
+imports only the core.
+"""
+
+import ast
+import pathlib
+
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+LAYERS = {"core": 0, "learn": 1, "apps": 2, "cli": 3}
+
+
+def layer(module: str) -> str | None:
+    if module == "cagekit.cli.common" or module.startswith("cagekit.cli.common."):
+        return "core"  # shared by the commands and the applications; imports the core only
+    if module == "cagekit.cli" or module.startswith("cagekit.cli."):
+        return "cli"
+    for prefix, name in (("cagekit_learn", "learn"), ("apps", "apps"), ("cagekit", "core")):
+        if module == prefix or module.startswith(prefix + "."):
+            return name
+    return None
+
+
+def modules():
+    for package in ("cagekit", "cagekit_learn", "apps"):
+        for path in sorted((ROOT / package).rglob("*.py")):
+            parts = path.relative_to(ROOT).with_suffix("").parts
+            name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+            yield name, path
+
+
+def imports(name, path):
+    """(line, imported module, imported names) of every import statement in a file."""
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                yield node.lineno, alias.name, []
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")[: len(package.split(".")) - node.level + 1]
+                module = ".".join(base + ([node.module] if node.module else []))
+            else:
+                module = node.module
+            yield node.lineno, module, [alias.name for alias in node.names]
+
+
+def violations(files=None):
+    """One line per bad import in ``files`` ((module name, path) pairs; default: all)."""
+    found = []
+    for name, path in modules() if files is None else files:
+        own = layer(name)
+        for line, module, names in imports(name, path):
+            where = f"{path.relative_to(ROOT)}:{line}"
+            other = layer(module)
+            if other is not None and LAYERS[other] > LAYERS[own]:
+                found.append(f"{where}: {name} ({own}) imports {module} ({other})")
+            for imported in names:
+                if imported.startswith("_") and not imported.startswith("__") \
+                        and module != name:
+                    found.append(f"{where}: {name} imports the private {module}.{imported}")
+    return found
+
+
+def test_no_module_imports_a_layer_above_it_or_a_private_name():
+    assert violations() == []
+
+
+@pytest.mark.parametrize("source, expected", [
+    ("from cagekit.cli import main\n", "imports cagekit.cli (cli)"),
+    ("from cagekit.deformation import _minimise\n", "private cagekit.deformation._minimise"),
+    ("def f():\n    import cagekit_learn.train\n", "imports cagekit_learn.train (learn)"),
+])
+def test_the_check_sees_a_bad_import(tmp_path, source, expected):
+    probe = tmp_path / "probe.py"
+    probe.write_text(source)
+    assert any(expected in v for v in violations([("cagekit.probe", probe)]))
