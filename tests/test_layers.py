@@ -56,7 +56,8 @@ def violations(files=None):
     for name, path in modules() if files is None else files:
         own = layer(name)
         for line, module, names in imports(name, path):
-            where = f"{path.relative_to(ROOT)}:{line}"
+            where = f"{path.name}:{line}" if ROOT not in path.parents else \
+                f"{path.relative_to(ROOT)}:{line}"
             other = layer(module)
             if other is not None and LAYERS[other] > LAYERS[own]:
                 found.append(f"{where}: {name} ({own}) imports {module} ({other})")
