@@ -1,44 +1,19 @@
 """Landmark-driven deformation transfer to a novel character ("Neural Cages", section 4.2).
 
-A template character in rest pose has a cage ``C_s``; example poses of the template are
-given as meshes. A novel character, which may look nothing like the template, is given
-in rest pose with a few landmarks whose labels match landmarks of the template. Each
-example pose is transferred to the novel character:
-
-1. the character's cage ``C_s'`` is fitted by MVC consistency of the landmarks
-   (:func:`cagekit_learn.consistency.fit_cage_by_consistency`), once;
-2. for each pose the template's cage deformation ``C_s -> C_(s->t)`` comes either from a
-   per-pair cage fit of the template onto the pose (:func:`cagekit.deform`, classical, no
-   training) or from a trained fixed-source network (``--model``, see
-   ``cagekit train --fixed-source``);
-3. it is applied as offsets to the fitted cage, ``C_(s'->t') = C_s' + A(C_(s->t) - C_s)``
-   (``A`` the linear part of the template-to-character alignment, so a character twice
-   the template's height moves twice as far), and the character is deformed with its mean
-   value coordinates in ``C_s'``.
-
-Decisions (ours)
-----------------
-- A pose that has the template's vertex count is taken to share its vertex order (the
-  usual case: poses of one rigged character); the classical fit is then the L2 alignment
-  with every vertex as a correspondence, a linear least-squares problem solved exactly
-  with a small cage-Laplacian term (:data:`SMOOTHNESS`). We measured it against
-  :func:`cagekit.deform` with 2,000 vertices as landmarks (its shape terms and cage
-  regulariser, 200 L-BFGS evaluations) on three humanoid poses: the template's own
-  error fell from 5.5-6.3% to 1.3-1.6% of its height. Any other pose is fitted by
-  :func:`cagekit.deform` with the Chamfer distance.
-- The rest poses are aligned by bounding box and height (``--align box``, default, no
-  rotation) or by the similarity that best maps the template's landmarks onto the
-  character's (``--align similarity``, for a character turned or lying differently).
-- The template's cage offsets are mapped by the alignment's linear part ``A`` before
-  they are added (the issue's ``C_s' + (C_(s->t) - C_s)`` when the two characters have
-  the same height; a character 1.3 times taller moves 1.3 times as far, as its own
-  limbs are 1.3 times longer).
-- Landmark labels found in one file only are listed in the report (and on stderr), never
-  dropped silently; fewer than 4 shared labels is an error.
-- Every input (poses and model included) is read and checked before the cage fit; the
-  outputs are written at the end, each atomically. The report checks the fitted cage
-  (signed volume, self-intersections, character vertices outside it) and each problem
-  is also a warning on stderr.
+The template (rest pose, cage ``C_s``, example poses as meshes) and a novel character (rest
+pose, landmarks whose labels match the template's): the character's cage ``C_s'`` is fitted
+once by MVC consistency (:func:`cagekit_learn.consistency.fit_cage_by_consistency`); each
+pose's template cage ``C_(s->t)`` comes from a per-pair fit (classical) or a trained
+fixed-source network (``--model``); the character moves with ``C_s' + A (C_(s->t) - C_s)``,
+``A`` the linear part of the template-to-character alignment (``--align box``, default, or
+``similarity``), so a taller character moves proportionally further. A pose with the
+template's vertex count is taken to share its vertex order and is fitted exactly by linear
+least squares with every vertex as a correspondence and a small cage-Laplacian term
+(:data:`SMOOTHNESS`), which fits better than :func:`cagekit.deform`; other poses use
+:func:`cagekit.deform` with Chamfer. Labels in one file only are reported, never dropped
+silently; fewer than 4 shared labels is an error. Every input is checked before the fit,
+outputs are written atomically at the end, and the report checks the fitted cage (also
+warnings on stderr). See docs/architecture.md.
 
 Usage::
 
@@ -59,7 +34,6 @@ from pathlib import Path
 
 import click
 import numpy as np
-from tqdm import tqdm
 
 from cagekit import io
 from cagekit.cage import check_cage
@@ -68,7 +42,7 @@ from cagekit.cli.common import (
     debug_option,
     emit_json,
     json_option,
-    progress_enabled,
+    progress_bar,
     same_file,
 )
 from cagekit.coords import bind
@@ -353,7 +327,7 @@ def transfer_cage(template_cage_v, deformed_template_cage_v, character_cage_v,
     ----------
     template_cage_v, deformed_template_cage_v, character_cage_v : (k, 3) array_like
         ``C_s``, ``C_(s->t)`` (template frame) and ``C_s'`` (character frame).
-    alignment : cagekit_learn.consistency.Similarity
+    alignment : cagekit.alignment.Similarity
         Template frame -> character frame.
 
     Returns
@@ -526,15 +500,16 @@ def main(template, template_cage, template_landmarks, character, character_landm
     fitted = time.perf_counter()
     fitter = classical_fitter(Vt, cage_v, cage_f) if model is None else None
     results = []
-    for (Vp, Fp) in tqdm(pose_meshes, desc="poses", unit="pose", disable=not progress_enabled(),
-                         leave=False):
-        t0 = time.perf_counter()
-        if model is None:
-            deformed = template_cage_classical((Vt, Ft), (cage_v, cage_f), (Vp, Fp),
-                                               seed=seed, fitter=fitter)
-        else:
-            deformed = template_cage_learned(model, Vt, cage_v, (Vp, Fp))
-        results.append((transfer(char, deformed), time.perf_counter() - t0))
+    with progress_bar("poses", "pose", total=len(pose_meshes)) as bar:
+        for (Vp, Fp) in pose_meshes:
+            t0 = time.perf_counter()
+            if model is None:
+                deformed = template_cage_classical((Vt, Ft), (cage_v, cage_f), (Vp, Fp),
+                                                   seed=seed, fitter=fitter)
+            else:
+                deformed = template_cage_learned(model, Vt, cage_v, (Vp, Fp))
+            results.append((transfer(char, deformed), time.perf_counter() - t0))
+            bar.update(1)
     with output_folder(out):
         rows = []
         for path, name, (X, seconds) in zip(pose_paths, names, results):

@@ -1,8 +1,8 @@
 """Posed humanoids with ground truth for deformation transfer (files on disk).
 
-Writes, from :mod:`cagekit.datasets.humanoid` and a seed, everything
-``python -m apps.deformation_transfer`` and ``cagekit train --fixed-source`` need, plus
-the ground truth that judges a transfer::
+Writes, from :mod:`cagekit.datasets.humanoid` and a seed, what
+``python -m apps.deformation_transfer`` and ``cagekit train --fixed-source`` need, and the
+ground truth that judges a transfer::
 
     OUT_DIR/template.obj                 the template body in rest pose (T-pose)
     OUT_DIR/template_cage.obj            its cage (cagekit.fit_cage, --cage-faces faces)
@@ -13,12 +13,9 @@ the ground truth that judges a transfer::
     OUT_DIR/truth/<body>/pose_000.obj    each body posed with the same joint rotations
     OUT_DIR/train/pose_0000.ply ...      the template in --train-poses other poses
 
-Test pose ``i`` is ``random_pose(TEST_POSE_SEED + i)``, training pose ``i`` is
+Test pose ``i`` is ``random_pose(TEST_POSE_SEED + i)`` and training pose ``i`` is
 ``random_pose(seed + i)`` (seeds below ``TEST_POSE_SEED``), so the two never share a pose.
-Every mesh of one body shares the template's faces (consistent topology), and landmarks
-are vertices chosen by construction, so the same labels exist on every body.
-
-Usage::
+Every mesh shares the template's faces and every body the same landmark labels. Usage::
 
     python -m apps.humanoid_data OUT_DIR [--poses 20] [--train-poses 1000] [--seed 0]
 """

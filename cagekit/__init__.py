@@ -1,9 +1,9 @@
 """cagekit: detail-preserving 3D shape deformation with cages.
 
 The core package: mean value coordinates (:func:`bind`), cage validation, automatic cages
-(:func:`fit_cage`), per-pair cage deformation (:func:`deform`), geometry
-(cotangent Laplacian, normalisation, sampling, PCA normals), the paper's metrics and mesh
-I/O. It never imports torch.
+(:func:`fit_cage`), per-pair cage deformation (:func:`deform`), frames, sampling, geometry
+(cotangent Laplacian, PCA normals), the paper's metrics, mesh and landmark I/O. It never
+imports torch. docs/architecture.md maps the modules.
 
 The names below are loaded on first use (PEP 562), so that ``import cagekit`` and the
 command line start in a fraction of a second; ``cagekit.bind`` and ``from cagekit import
@@ -14,7 +14,7 @@ Examples
 >>> import numpy as np, cagekit
 >>> cage_v, cage_f = cagekit.shapes.box_cage()
 >>> b = cagekit.bind(np.array([[0.2, 0.0, -0.1]]), cage_v, cage_f)
->>> b.deform(cage_v * [2.0, 1.0, 1.0]).round(12).tolist()
+>>> (b.deform(cage_v * [2.0, 1.0, 1.0]).round(12) + 0.0).tolist()
 [[0.4, 0.0, -0.1]]
 """
 
@@ -43,8 +43,9 @@ _EXPORTS = {
     "OutsideCageWarning": "cagekit.errors",
 }
 #: submodules reachable as attributes (``cagekit.io.load_mesh``) without importing them first
-_SUBMODULES = ("shapes", "cage", "coords", "datasets", "deformation", "errors", "fitting",
-               "frame", "geometry", "io", "losses", "metrics", "render", "sampling")
+_SUBMODULES = ("alignment", "cage", "coords", "datasets", "deformation", "errors", "files",
+               "fitting", "frame", "geometry", "io", "landmarks", "losses", "metrics",
+               "optimize", "progress", "render", "sampling", "shapes")
 
 __all__ = [*_EXPORTS, *_SUBMODULES, "__version__"]
 

@@ -1,22 +1,15 @@
 """Cages: validation, orientation, edge topology and the enclosure test.
 
-A cage is a closed, 2-manifold triangle mesh with consistently oriented faces whose normals
-point outward (positive signed volume). Its vertex order is its identity: nothing here ever
-reorders, merges or drops cage vertices. :func:`check_cage` is the gate every cage passes
-before coordinates are computed; it returns the faces, flipped if the cage was consistently
-oriented inward, and raises :class:`cagekit.CageError` for anything it cannot fix.
-
-Decisions
----------
-* An open cage (a boundary edge), a non-manifold edge (shared by more than two faces), an
-  inconsistently oriented pair of faces, a face repeating a vertex or of zero area (twice
-  its area below 1e-24 D**2, D the bounding-box diagonal), an index out of range and
-  non-finite coordinates are errors, and so (by default) is a cage whose faces cross one
-  another. Near-degenerate (sliver) faces are fine. A consistently *inward* cage is
-  flipped, not refused.
-* A cage with several closed components is accepted (each component is checked); its
-  orientation is decided per component by the sign of the component's volume.
-* Unreferenced vertices are allowed: they keep their index and get zero weight.
+A cage is a closed, 2-manifold triangle mesh with consistently oriented, outward faces
+(positive signed volume), and its vertex order is its identity: nothing here reorders,
+merges or drops cage vertices. :func:`check_cage` is the gate every cage passes before
+coordinates are computed. It raises :class:`cagekit.CageError` for an open or non-manifold
+edge, inconsistent orientation, a face that repeats a vertex or has zero area (twice its
+area below ``1e-24 D**2``, ``D`` the bounding-box diagonal), an index out of range,
+non-finite coordinates and, by default, faces that cross one another. Slivers are fine, a
+consistently inward cage is flipped rather than refused, several closed components are each
+checked and oriented by their own volume, and unreferenced vertices keep their index and
+get zero weight. See docs/architecture.md.
 """
 
 from __future__ import annotations

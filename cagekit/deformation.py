@@ -1,79 +1,22 @@
 """Per-pair cage deformation: move a source's cage so the source takes a target's shape.
 
-The paper's energy (section 3.3 of "Neural Cages") for one source-target pair, minimised
-over the cage vertices with no training: a non-rigid ICP whose unknowns are the ``k``
-cage vertices rather than the ``n`` shape vertices. The source and its samples are bound
-to the cage once (:func:`cagekit.bind`); every deformed point is then ``W @ C``, linear in
-the cage ``C``, so each term's gradient with respect to the cage is the exact
-``W.T @ dE/dX`` (terms and their gradients in :mod:`cagekit.losses`).
-
-Energy (all in the paper's frame, both shapes normalised on their own)::
-
-    E(C) = w_chamfer  * Chamfer(W_s C, target samples)        alignment, or
-           w_landmarks * mean |W_l C - t_l|^2                  with landmarks
-         + w_p2f    * L_p2f(W_x C)      change of point-to-plane distances (one-ring PCA)
-         + w_normal * L_normal(W_x C)   1 - |cos| between PCA normals before and after
-         + w_symmetry * (Chamfer(Y, mirror Y) + L_cage_symm(C))  with --symmetry
-         + w_cage   * mean (L_cage (C - C_0))^2   change of the cage's cotangent Laplacian
-
-Defaults: ``w_chamfer = w_landmarks = 1``, ``w_p2f = w_normal = 0.1`` (the paper's
-``alpha_shape``), ``w_symmetry = 1`` when an axis is given, and ``w_cage = 0.3`` with the
-default ``reference="aligned"``, 1 with ``reference="source"`` (ours: the paper gives no
-weight for a cage regulariser; these were the best CD / dCotLap balances of 0.1, 0.3, 1
-and 3 on the benchmark's pairs for each reference). With landmarks the Chamfer weight
-defaults to 0 (landmarks replace it); pass both weights to use both.
-
-Decisions
----------
-- **Solver.** Coarse to fine: first the source's bounding box is mapped onto the
-  target's (the anisotropic scaling baseline, applied to the cage), then the full energy
-  is minimised from there by nlopt's L-BFGS (``LD_LBFGS``) with the analytic gradient.
-  We chose L-BFGS on the full energy over alternating nearest-neighbour assignment with
-  linear solves (which we did not build) because the shape terms (PCA normals) are not
-  quadratic in the cage: the alternating scheme would have to linearise them, while
-  L-BFGS minimises exactly the energy whose terms and gradients the tests check. With 3k
-  unknowns (306 for a 200-face cage) an evaluation costs about 10 ms, and L-BFGS gets
-  most of the way fast: on a table pair the energy after 50 evaluations was within 8% of
-  its value after 300, and on a chair, a table, a vase and cow -> bull, CD and dCotLap
-  after 50 evaluations were within 3% of their values after 100; hence the default of
-  60. At a nearest-neighbour switch of the Chamfer term (where it is not
-  differentiable) nlopt may stop early; the best point seen is kept and the run is
-  restarted once.
-- **References.** By default (``reference="aligned"``) the shape terms and the cage
-  regulariser compare with the source and cage *after* the coarse stage (box-aligned):
-  the stretch that maps one bounding box onto the other is free and only the rest of the
-  deformation costs. A source deformed onto a stretched copy of itself comes back up to
-  the sampling noise of the Chamfer term (two independent samplings: vertices within
-  about 1% of the size on the tests' shapes), and the legs of a chair made wider stay
-  straight. ``reference="source"`` compares with
-  the source and cage as given (the paper's choice): every stretch costs, so the result
-  keeps less of the box stretch, dCotLap (which charges for stretch) is lower, but parts
-  bend where the target's proportions differ (the bundled chair pair, CD x1e2 / dCotLap
-  x1e3: aligned 0.23 / 0.25 with straight legs, source 0.55 / 0.08 with splayed legs and
-  a narrower seat; the scaling baseline 1.44 / 0.27). docs/benchmarks.md has both on 20
-  pairs, and a picture.
-- **Subsets.** Chamfer uses ``samples`` area-uniform samples of each surface (a point
-  cloud: its points, subsampled); the shape terms use the one-ring planes of at most
-  ``shape_points`` seeded vertices. Both are drawn once from ``seed``: the same inputs and
-  seed give the same result.
-- **Symmetry** is about the plane through the centre of the bounding box normal to the
-  axis (in the normalised frames both shapes are centred there). The shape's part is the
-  paper's (Chamfer between the deformed samples and their mirror image). The cage's part
-  is not the Chamfer distance between the cage and its mirror image: fitted cages are
-  rarely symmetric, and pulling one towards symmetry bends the symmetric shape inside
-  it (measured: the result came out 3.6x less symmetric than with no symmetry term).
-  It is :func:`cagekit.losses.cage_symmetry_loss`, the change of each vertex's offset
-  from its rest mirror partner, which asks for a symmetric motion and equals half the
-  paper's term on a symmetric cage.
-- A point-cloud source deforms its points; its shape terms use k-nearest-neighbour
-  (k = 16) neighbourhoods instead of one-rings.
-- **Partial targets** (a single-view scan) are accepted, with a known limitation: the
-  target is normalised by the bounding box of what was seen, and both the box alignment
-  and the source-to-target half of Chamfer assume the target is whole, so the source is
-  squashed towards the seen part (an ellipsoid of which only the front 62% of its depth
-  was sampled came out with 58% of its true depth). The scan-to-result distance does fall (the
-  tests check it); landmarks on the seen part, or a larger ``w_cage``, limit the
-  squashing. A one-sided mode is left for later.
+Minimises the paper's per-pair energy (section 3.3 of "Neural Cages") over the cage
+vertices, with no training: the source is bound once (:func:`cagekit.bind`), a deformed
+point is ``W @ C``, and each term's gradient is the exact ``W.T @ dE/dX``
+(:mod:`cagekit.losses`). The energy is an alignment term (Chamfer, or landmarks, which
+replace it by default), the shape terms ``L_p2f`` and ``L_normal`` (0.1 each, the paper's
+``alpha_shape``), an optional symmetry term and the change of the cage's cotangent
+Laplacian (0.3, or 1 with ``reference="source"``; ours: the paper gives no weight). The
+source's bounding box is first mapped onto the target's; nlopt's L-BFGS then minimises the
+full energy with its analytic gradient (not an alternating linearised scheme: the PCA-normal
+terms are not quadratic in the cage), 60 evaluations by default, restarted once from the
+best point if it stops at a Chamfer switch. ``reference="aligned"`` (default) compares the
+shape and cage terms with the box-aligned source, so the box stretch is free and straight
+parts stay straight; ``reference="source"`` (the paper's) charges every stretch. Cage
+symmetry asks for a symmetric motion, not a symmetric cage
+(:func:`cagekit.losses.cage_symmetry_loss`). Samples are drawn once from ``seed``; point
+clouds use 16-nearest-neighbour neighbourhoods. A partial scan is accepted, but the result
+is squashed towards its seen part. See docs/architecture.md.
 """
 
 from __future__ import annotations
@@ -108,8 +51,8 @@ REFERENCES = ("source", "aligned")
 DEFAULT_WEIGHTS = {
     "chamfer": 1.0,
     "landmarks": 1.0,
-    "p2f": 0.1,
-    "normal": 0.1,
+    "p2f": losses.ALPHA_SHAPE,
+    "normal": losses.ALPHA_SHAPE,
     "symmetry": 1.0,
     "cage": 0.3,
 }
@@ -536,9 +479,10 @@ def deform(source, target, cage=None, *, method: str = "cage", symmetry: str | N
         evaluation of ``cage`` (the command line moves a progress bar with it).
     initial_cage : (k, 3) array_like of float, optional
         Where the optimisation starts: a deformed position of ``cage``'s vertices in the
-        target's frame and units (for example a learned prediction, which ``cagekit
-        deform --model --refine`` refines). Default: the box-aligned cage. Needs
-        ``cage``; the references of the shape and cage terms are unchanged.
+        target's frame and units (for example a learned prediction; ``cagekit deform
+        --model --refine`` refines one in the unit frames with :class:`CageProblem` and
+        :func:`solve`). Default: the box-aligned cage. Needs ``cage``; the references of
+        the shape and cage terms are unchanged.
     check : bool, default True
         Refuse a given ``cage`` that intersects itself (as :func:`cagekit.bind`); False
         skips that test (a network's predicted cage, which may fold).

@@ -1,47 +1,22 @@
 """Automatic cages: ``fit_cage`` wraps any mesh or point cloud in a verified cage.
 
-Methods
--------
-``wrap`` (default)
-    1. CGAL's alpha wrap (through pymeshlab) of the input with a small outward offset: a
-       closed, 2-manifold, outward surface around the input, whatever the input (open,
-       several components, non-manifold, self-intersecting, a point cloud, which is given
-       to the wrap as a soup of tiny triangles). The first alpha is about
-       ``0.9 / sqrt(faces)`` of the diagonal (:func:`default_alphas`): a coarser cage
-       needs a coarser wrap, which is several times faster to build.
-    2. libigl's QSlim decimation to the requested face count with ``block_intersections``
-       (no collapse may make the cage intersect itself). QSlim keeps the surface close to
-       the wrap on both sides, so some of the input ends up outside; a repair pushes cage
-       vertices out along their normals: a sample short of ``margin`` by ``need`` at
-       barycentric coordinates ``b`` on its closest cage face asks vertex ``k`` for
-       ``need b_k / (|b|^2 (n_k . N))`` (the least push that covers it, to first order;
-       ``n_k . N``, the vertex normal's share along the face normal, is clipped to
-       [0.6, 1]), each vertex takes its largest request, until every sample is ``margin``
-       inside. When one decimation is beyond repair (thin or open inputs, whose two
-       wrapped sheets fold onto each other; the repair stops when, after 8 rounds, the
-       worst violation has doubled), the face count is halved step by step with a repair
-       after each.
-    3. Samples can all be inside while an input edge between them pokes through a cage
-       face; the exact triangle-triangle test (pymeshlab) finds such faces and their
-       vertices are pushed out by ``2 margin``, a few rounds at most.
-    4. Verification of every guarantee (:func:`cage_report`); if one fails, the next offset
-       is tried (``offsets``), then the next alpha, and when none passes a
-       :class:`CageFitError` is raised.
-
-    What limits tightness is QSlim's placement: after the repair each cage face rests on
-    the input, so the cage cannot shrink further along its normals (a per-vertex inward
-    search gained 6-10% of volume for 1-2 s and was dropped).
-``template``
-    The paper's 42-vertex icosphere (:func:`template_cage`), centred on the bounding box and
-    shrunk radially by a linear program: with ``s_i = 1 / r_i`` a point ``c + rho u`` lies
-    inside the radial cage when ``rho (a s_a + b s_b + g s_g) <= 1``, where ``u = a u_a +
-    b u_b + g u_g`` in the spherical triangle it falls in. Maximising ``sum s_i`` under these
-    constraints for every sample (with a margin) gives the tightest radial cage that
-    provably encloses them; it stays embedded because it is a radial graph.
-
-Both methods work in a frame where the input's bounding-box diagonal is 1 and map the cage
-back to the input's frame. Every returned cage has passed every check of
-:func:`cage_report`.
+``wrap`` (default): CGAL's alpha wrap (through pymeshlab), with a small outward offset and a
+first alpha of about ``0.9 / sqrt(faces)`` of the diagonal (:func:`default_alphas`: a
+coarser cage needs a coarser wrap), gives a closed, 2-manifold, outward surface around any
+input, open, non-manifold or a point cloud; libigl's QSlim with ``block_intersections``
+decimates it to the face count; a repair pushes vertices out along their normals until
+every sample is ``margin`` inside (halving the face count step by step when a thin or open
+input's decimation is beyond repair), and faces an input edge pokes through are pushed out
+by ``2 margin``. If any check fails the next offset, then the next alpha, is tried, and
+:class:`CageFitError` is raised when none passes. QSlim's placement limits tightness: after
+the repair each face rests on the input. ``template``: the paper's 42-vertex icosphere
+(:func:`template_cage`) centred on the bounding box and shrunk radially by a linear
+program: with ``s_i = 1 / r_i``, a point ``c + rho u`` (``u = a u_a + b u_b + g u_g`` in its
+spherical triangle) is inside when ``rho (a s_a + b s_b + g s_g) <= 1``; maximising
+``sum s_i`` under this constraint for every sample, with a margin, gives the tightest
+radial cage that encloses them, embedded because it is a radial graph. Both methods work in
+the frame where the input's bounding-box diagonal is 1 and return only cages that pass every
+check of :func:`cage_report`. See docs/architecture.md.
 """
 
 from __future__ import annotations
@@ -96,16 +71,15 @@ def _as_shape(shape_v, shape_f):
 
 
 def _frame(v):
-    """Bounding-box centre and diagonal of a shape (the fitting frame's unit)."""
+    """The fitting frame: bounding-box centre, the diagonal as unit."""
     from cagekit.frame import Frame
 
     try:
-        frame = Frame.of(v, unit="diagonal")
+        return Frame.of(v, unit="diagonal")
     except InputError as exc:
         if "coincide" in exc.problem:
             raise InputError("all points of the shape coincide: nothing to cage") from None
         raise
-    return frame.centre, frame.scale
 
 
 def _samples(v, f, n, seed):
@@ -560,8 +534,8 @@ def cage_report(shape_v, shape_f, cage_v, cage_f, faces: int | None = None,
                          f"vertices and {len(cf)} faces")
     if not np.all(np.isfinite(cv)) or cf.min() < 0 or cf.max() >= len(cv):
         raise InputError("the cage has NaN coordinates or face indices out of range")
-    centre, diag = _frame(v)
-    vn, cvn = (v - centre) / diag, (cv - centre) / diag
+    frame = _frame(v)
+    vn, cvn = frame.to_unit(v), frame.to_unit(cv)
     pts = _samples(vn, f, samples, seed)
     checks = _checks(cvn, cf, vn, f, pts, len(cf) if faces is None else faces, components)
     return _report(checks, vn, f, cvn, cf, seed)
@@ -663,8 +637,8 @@ def fit_cage(shape_v, shape_f=None, faces: int = 200, method: str = "wrap", *,
                          f"{faces} asked for; ask for {TEMPLATE_FACES} or more, or use "
                          "method wrap")
     v, f = _as_shape(shape_v, shape_f)
-    centre, diag = _frame(v)
-    vn = (v - centre) / diag
+    frame = _frame(v)
+    vn = frame.to_unit(v)
     pts = _samples(vn, f, samples, seed)
     if method == "template":
         # a wider margin when input edges cross the cage between samples
@@ -681,7 +655,7 @@ def fit_cage(shape_v, shape_f=None, faces: int = 200, method: str = "wrap", *,
             alphas = default_alphas(int(faces))
         cvn, cf, report = _fit_wrap(vn, f, int(faces), pts, margin, offsets, alphas,
                                     max_repairs, components)
-    cage_v = cvn * diag + centre
+    cage_v = frame.to_world(cvn)
     if return_report:
         return cage_v, cf, _report(report, vn, f, cvn, cf, seed)
     return cage_v, cf

@@ -2,31 +2,18 @@
 
 Vertices are ``(n, 3)`` float64 and faces ``(m, 3)`` int64, as libigl; a point cloud is a
 mesh with no faces (``F`` is ``None`` or has zero rows). Every function checks its input and
-raises :class:`cagekit.errors.InputError` for NaN or infinite coordinates, wrong shapes,
-out-of-range face indices and empty input; no function returns NaN.
-
-Decisions
----------
-- :func:`cotangent_laplacian` is ``igl.cotmatrix``. Its sign convention is the one of the
-  DESIGN ("Metrics"): ``L_ij = (cot a + cot b) / 2`` off the diagonal, ``L_ii = -sum_j L_ij``,
-  so ``L`` is negative semi-definite, symmetric and its rows sum to 0; no mass matrix.
-  libigl returns a CSC matrix; it is converted to CSR. A face of zero area makes a
-  cotangent infinite (libigl then returns inf and NaN entries), so it is refused with
-  :class:`~cagekit.errors.InputError` instead.
-- Neighbourhoods are a :class:`Neighborhoods` pair of padded arrays ``(index, mask)``,
-  both ``(n, m)``: row ``i`` lists vertex ``i`` itself (column 0 for meshes) and its
-  neighbours; padding slots repeat ``i`` and have ``mask`` False. Gathering
-  ``V_moved[index]`` is one vectorised fancy-indexing step, so planes can be re-evaluated
-  on moved vertices with the neighbourhoods held fixed (:func:`pca_planes`).
-- PCA normals have an arbitrary sign from the eigen-solver; :func:`orient_normals` fixes
-  it. With faces, a normal is made to agree with the area-weighted vertex normal
-  (``igl.per_vertex_normals``). For point clouds, and for mesh vertices that touch no face
-  of positive area, it is made to point away from the centroid of all points: a
-  heuristic that is right for star-shaped clouds (a sphere) and may be wrong in concave
-  regions.
-- A neighbourhood with fewer than 3 points, or with collinear points, has a degenerate
-  covariance. Its "normal" is then any unit vector orthogonal to the points' span (as the
-  eigen-solver returns it); it is finite and the point-to-plane distance is still 0.
+raises :class:`cagekit.errors.InputError` for non-finite coordinates, wrong shapes,
+out-of-range indices and empty input; none returns NaN. :func:`cotangent_laplacian` is
+``igl.cotmatrix`` as CSR, with the convention of docs/architecture.md ("Metrics"):
+``L_ij = (cot a + cot b) / 2`` off the diagonal, ``L_ii = -sum_j L_ij`` (negative
+semi-definite, symmetric, rows summing to 0, no mass matrix); zero-area faces are refused
+rather than turned into inf and NaN. Neighbourhoods are a :class:`Neighborhoods` pair of
+padded ``(n, m)`` arrays ``(index, mask)`` (row ``i`` lists ``i`` itself, then its
+neighbours), so planes are re-evaluated on moved vertices by one fancy-indexing step
+(:func:`pca_planes`). :func:`orient_normals` signs PCA normals by the area-weighted vertex
+normal, or, for clouds and vertices on no face of positive area, away from the centroid (a
+heuristic that may be wrong in concave regions). A degenerate neighbourhood (fewer than 3
+points, or collinear) gets some unit normal orthogonal to its span, with distance 0.
 """
 
 from __future__ import annotations

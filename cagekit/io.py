@@ -1,50 +1,23 @@
 """Reading and writing meshes and point clouds.
 
 Meshes come back as ``V`` (n, 3) float64 and ``F`` (m, 3) int64; a point cloud is a mesh with
-no faces. Every problem with a file raises :class:`~cagekit.errors.MeshFileError` (an
-:class:`~cagekit.errors.InputError`) with one line that names the file and the problem;
-problems with arrays or destinations given to a ``save_*`` function raise
-:class:`~cagekit.errors.InputError`.
-
-Decisions
----------
-- **Vertex order is identity.** A cage's vertex order is what binds it to its coordinates, so
-  the readers return every vertex of the file, in file order: unreferenced and duplicate
-  vertices are kept and nothing is merged or reindexed (STL, which stores no shared vertices,
-  is the one exception: identical positions are merged in order of first appearance).
-- **OBJ, OFF and PLY are parsed here, not by trimesh.** trimesh 5.2 breaks vertex identity
-  on common files: an OBJ with several ``usemtl`` blocks comes back with every vertex
-  repeated once per material, relative (negative) OBJ indices resolve against the end of the
-  file instead of the current vertex, index 0 and two-vertex faces pass silently, a truncated
-  ASCII PLY loads as a shorter mesh without a word, binary PLY mixing triangles and quads is
-  refused, and its PLY writer stores float32. These three formats are simple, so they are
-  read and written here; STL and GLB/GLTF go through ``trimesh.load(..., process=False,
-  maintain_order=True)``.
-- **Polygons are fan-triangulated** in file order (face ``a b c d`` gives ``a b c``,
-  ``a c d``), which is exact for convex polygons. Faces with fewer than 3 vertices (lines or
-  points written as faces, as real files have) are dropped with one
-  :class:`~cagekit.errors.MeshFileWarning` per file that counts them; vertices are kept.
-  Degenerate triangles (a repeated index, zero area) are kept as they are.
-- **OBJ** reads ``v`` and ``f`` statements only (texture coordinates, normals, groups,
-  materials, lines and points are ignored); extra ``v`` columns (w or colours) are ignored;
-  indices are 1-based, negative indices count back from the latest vertex, index 0 is an
-  error; ``#`` starts a comment that runs to the end of its line (on every line, after a
-  ``v`` or ``f`` statement too); lines ending in a backslash (trailing spaces and a comment
-  aside) continue on the next line.
-- **GLB/GLTF scenes are flattened**: every mesh instance is transformed by its node's world
-  transform and the instances are concatenated in trimesh's scene-graph order. A scene with
-  point clouds and no meshes loads as a point cloud.
-- **Text point clouds** (``.xyz``, ``.pts``, ``.txt``): one point a line, whitespace- or
-  comma-separated, the first three columns are x y z, extra columns are ignored; blank lines
-  and lines starting with ``#`` or ``//`` are skipped; the first line may be a single point
-  count (the PTS convention), which must then match the number of points.
-- **Writing** is exact where the format allows: OBJ, OFF, XYZ, TXT and PTS use ``%.17g`` so
-  text round-trips bit for bit, PLY is binary little-endian with float64 coordinates and
-  int32 indices, NPY is float64. STL and GLB store float32 by definition. Every file is
-  written atomically (:func:`cagekit.files.atomic_output`).
-- **Quiet failures.** Any exception a parser raises becomes a one-line ``MeshFileError`` /
-  ``LandmarkFileError``; a NullHandler on the ``trimesh`` logger stops trimesh from printing
-  tracebacks on stderr through Python's last-resort handler.
+no faces. A bad file raises a one-line :class:`~cagekit.errors.MeshFileError` (an
+:class:`~cagekit.errors.InputError`, as are bad arrays or destinations given to ``save_*``)
+naming the file; a NullHandler on the ``trimesh`` logger keeps its tracebacks off stderr.
+Vertex order is identity: readers return every vertex in file order, unreferenced and
+duplicate ones included (STL, which shares no vertices, merges identical positions in order
+of first appearance). OBJ, OFF and PLY are therefore parsed here, as trimesh does not keep
+vertex identity on common files; STL and GLB/GLTF use ``trimesh.load(..., process=False,
+maintain_order=True)``, scenes flattened by world transform in scene-graph order (only point
+clouds: a point cloud). Polygons are fan-triangulated in file order; faces of fewer than 3
+vertices are dropped with one :class:`~cagekit.errors.MeshFileWarning` per file; degenerate
+triangles are kept. OBJ reads ``v`` (first three columns) and ``f`` only: 1-based, negative
+indices count back from the latest vertex, index 0 is an error, ``#`` comments on any line,
+backslash continuations. Text clouds (``.xyz``, ``.pts``, ``.txt``): one point a line,
+whitespace or commas, first three columns; blank, ``#`` and ``//`` lines skipped; a leading
+point count (PTS) must match. Writing is atomic (:func:`cagekit.files.atomic_output`) and
+exact where the format allows: ``%.17g`` text, binary little-endian PLY (float64, int32
+indices), float64 NPY; STL and GLB store float32.
 """
 
 from __future__ import annotations

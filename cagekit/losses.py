@@ -1,39 +1,17 @@
 """The per-pair energy's terms (section 3.3 of "Neural Cages"), each with its exact gradient.
 
 Every function takes point positions (usually the deformed points ``X = W @ C``, linear in
-the cage ``C``) and returns ``(value, gradient)`` with the gradient of the value with
-respect to the positions it was given; the chain rule through the binding is then one
-product, ``dE/dC = W.T @ dE/dX``. All arrays are float64.
-
-=====================  ==================================================================
-term                   value
-=====================  ==================================================================
-:func:`chamfer_loss`   ``mean_a min_b |a - b|^2 + mean_b min_a |a - b|^2`` (alignment)
-:func:`landmark_loss`  ``mean_l |p_l - t_l|^2`` (alignment with known correspondences)
-:func:`symmetry_loss`  Chamfer between a point set and its mirror image
-:func:`cage_symmetry_loss`  change of each cage vertex's offset from its mirror partner
-:func:`p2f_loss`       ``mean_i (d_i(X) - d_i^0)^2``, ``d_i`` the signed distance of
-                       vertex ``i`` to the PCA plane of its neighbourhood
-:func:`normal_loss`    ``mean_i (1 - |n_i(X) . n_i^0|)``, ``n_i`` the PCA normal
-                       (both: :func:`shape_losses`, one eigen-decomposition)
-:func:`laplacian_loss` ``mean over k x 3 entries of (L (C - C_ref))^2``
-:func:`mvc_loss`       ``mean over n x k entries of min(W, 0)^2`` (negative MVC weights)
-=====================  ==================================================================
-
-Decisions
----------
-- Chamfer is the DESIGN's: squared distances, the two directions summed, not halved. Its
-  gradient is the gradient for the current nearest neighbours (the function is piecewise
-  quadratic; nearest-neighbour switches are where it is not differentiable), which is what
-  a finite difference sees away from ties.
-- PCA normals are eigenvectors of the neighbourhood covariance; their derivative is the
-  first-order eigenvector perturbation ``dn = sum_{k>0} v_k (v_k . dM n) / (l_0 - l_k)``.
-  Where the smallest eigenvalue is (nearly) repeated (a neighbourhood on a line, or a
-  point) the normal is not a function of the points; those pairs of eigenvalues closer than
-  ``1e-12`` times the covariance's trace contribute no gradient (finite, not exact).
-- A normal's sign is arbitrary; both shape terms compare it with the rest normal through
-  ``|n . n0|`` (:func:`normal_loss`) or after flipping it to agree with ``n0``
-  (:func:`p2f_loss`), so the sign never matters.
+the cage ``C``) and returns ``(value, gradient)`` with respect to the positions it was
+given, so the chain rule through the binding is one product, ``dE/dC = W.T @ dE/dX``; all
+arrays are float64. The terms: Chamfer and landmark alignment, point-set and cage symmetry,
+point-to-plane and PCA-normal change (:func:`shape_losses`, one eigen-decomposition), the
+cage's Laplacian change and ``L_MVC`` (negative weights); each function states its formula.
+Chamfer follows docs/architecture.md ("Metrics"): squared distances, both directions summed,
+not halved; its gradient is that of the current nearest neighbours (it is piecewise
+quadratic). The PCA normal's derivative is the first-order eigenvector perturbation, and
+pairs of eigenvalues closer than ``1e-12`` times the covariance's trace contribute no
+gradient, so gradients stay finite where the normal is not a function of the points. A
+normal's sign is arbitrary; both shape terms compare it with the rest normal up to sign.
 """
 
 from __future__ import annotations
@@ -47,6 +25,8 @@ from scipy.spatial import cKDTree
 from cagekit.errors import InputError
 
 __all__ = [
+    "ALPHA_MVC",
+    "ALPHA_SHAPE",
     "ShapeReference",
     "cage_symmetry_loss",
     "chamfer_loss",
@@ -61,6 +41,11 @@ __all__ = [
     "shape_reference",
     "symmetry_loss",
 ]
+
+#: weight of the MVC regulariser in the training energy (the paper's ``alpha_MVC``)
+ALPHA_MVC = 1.0
+#: weight of the shape terms, point-to-plane and normal (the paper's ``alpha_shape``)
+ALPHA_SHAPE = 0.1
 
 AXES = {"x": 0, "y": 1, "z": 2}
 

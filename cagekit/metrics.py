@@ -1,47 +1,19 @@
 """Evaluation metrics of a deformation: Chamfer distance and cotangent-Laplacian distortion.
 
-The definitions are the DESIGN's ("Metrics", as the paper's evaluation code computes
-them), taken literally:
-
-- ``CD = mean_a min_b |a - b|^2 + mean_b min_a |a - b|^2`` on 5000 area-uniform samples
-  per surface: squared distances, both directions summed, not halved. Tables print
-  ``CD x 10^2``.
-- ``dCotLap = mean over all n x 3 entries of (L (V_out - V_src))^2`` with ``L`` the
-  cotangent Laplacian (no mass matrix) of the normalised source after duplicate and
-  zero-area faces are removed. Tables print ``dCotLap x 10^3``.
-
-Frames in :func:`evaluate`: the target is normalised on its own; the deformed source is
-mapped by the target's (centre, scale); the source normalised on its own is the
-distortion reference.
-
-Decisions
----------
-- The two surfaces in :func:`chamfer` are sampled with two independent random streams,
-  both derived from the one ``seed`` (``numpy.random.SeedSequence(seed).spawn(2)``: the
-  first for shape a, the second for shape b). Sampling both with the same stream would
-  put the samples of two shapes of the same topology at the same barycentric positions
-  of the same faces, and CD would then measure vertex correspondence, not the distance
-  between the surfaces. As a consequence two identical shapes give a small positive CD
-  (of the order of the squared sample spacing), and swapping the shapes swaps their
-  streams, so ``chamfer(a, b)`` and ``chamfer(b, a)`` agree only in distribution.
-  :func:`chamfer_distance` of two fixed point sets is exactly symmetric.
-- A point cloud (no faces) is not resampled: :func:`surface_samples` returns its points
-  as they are when there are at most ``n``, otherwise a seeded random subset of ``n``
-  distinct points (in their original order).
-- In :func:`evaluate` the deformed shape is sampled with its own faces when it has any,
-  otherwise with the source's faces (the deformed source shares the source's topology).
-- dCotLap is invariant to translating ``V_out`` (rows of ``L`` sum to 0) but *not* to
-  rotating or scaling it: ``L (R V - V) = L V (R^T - I)``, which is 0 only where
-  ``L V = 0``. Through :func:`evaluate` a deformed source that is a translated and
-  uniformly scaled copy of the source normalises back onto the normalised source, so it
-  scores 0 against itself as target; a rotated copy does not.
-- Duplicate and zero-area faces are removed before ``L`` is built: a zero-area face has
-  undefined cotangents (real meshes, ShapeNet's among them, have degenerate triangles).
-  A vertex that lies on such faces only gets an empty row of ``L`` (it adds 0 to the
-  mean, and still counts in ``n``). :func:`cagekit.geometry.cotangent_laplacian` itself
-  still refuses zero-area faces.
-- dCotLap needs the source's faces; a point-cloud source, or one whose faces all have
-  zero area, raises ``InputError``.
+The definitions are those of docs/architecture.md ("Metrics", as the paper's evaluation
+code computes them): ``CD = mean_a min_b |a - b|^2 + mean_b min_a |a - b|^2`` on 5000
+area-uniform samples per surface (tables print ``CD x 10^2``), and ``dCotLap``, the mean
+over all ``n x 3`` entries of ``(L (V_out - V_src))^2`` with ``L`` the cotangent Laplacian,
+no mass matrix, of the normalised source (tables print ``dCotLap x 10^3``). In
+:func:`evaluate` the target is normalised on its own, the deformed source is mapped by the
+target's normalisation and the source normalised on its own is the distortion reference.
+The two surfaces are sampled with independent streams spawned from one ``seed``, so CD
+measures the distance between surfaces, not vertex correspondence: identical shapes give a
+small positive CD and ``chamfer(a, b)`` equals ``chamfer(b, a)`` only in distribution. A
+point cloud is not resampled (a seeded subset when it has more than ``n`` points). dCotLap
+is invariant to translating ``V_out``, not to rotating or scaling it. Duplicate and
+zero-area faces are removed before ``L`` is built (a vertex only on such faces gets an empty
+row, still counted in ``n``); a source without faces of positive area raises ``InputError``.
 """
 
 from __future__ import annotations

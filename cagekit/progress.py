@@ -36,7 +36,7 @@ def _terminal_size() -> tuple[int, int]:
 
 
 def progress_bar(desc: str, unit: str, total: int | None = None, initial: int = 0,
-                 enabled: bool | None = None):
+                 enabled: bool | None = None, leave: bool = False):
     """A tqdm bar on stderr; disabled (a no-op with the same methods) when not wanted.
 
     Parameters
@@ -47,8 +47,10 @@ def progress_bar(desc: str, unit: str, total: int | None = None, initial: int = 
     initial : int, default 0
         Where the bar starts (a resumed run).
     enabled : bool, optional
-        Show it; default :func:`progress_enabled`. False is never overridden, True is
-        still subject to stderr being a terminal.
+        Show it (True) or not (False); default :func:`progress_enabled`, which is what
+        the command line uses.
+    leave : bool, default False
+        Keep the finished bar on screen (training, sampling) instead of clearing it.
 
     Returns
     -------
@@ -63,10 +65,10 @@ def progress_bar(desc: str, unit: str, total: int | None = None, initial: int = 
     """
     from tqdm import tqdm
 
-    show = progress_enabled() and (enabled is None or bool(enabled))
+    show = progress_enabled() if enabled is None else bool(enabled)
     columns, lines = _terminal_size()
     return tqdm(total=total, initial=initial, desc=desc, unit=unit, file=sys.stderr,
-                leave=False, ncols=columns, nrows=lines, disable=not show)
+                leave=leave, ncols=columns, nrows=lines, disable=not show)
 
 
 def bar_callback(bar):

@@ -221,7 +221,6 @@ def render_meshes(
     size: tuple[int, int] = (480, 480),
     up: str = "y",
     same_scale: bool = False,
-    max_faces: int = MAX_FACES,
 ) -> str:
     """Draw shapes side by side and write the picture as a PNG file (atomically).
 
@@ -251,9 +250,6 @@ def render_meshes(
     same_scale : bool
         If True, all panels share one frame (compare shapes in the same units); otherwise
         each panel is fitted to its own shape and cage.
-    max_faces : int
-        At most this many faces of one mesh are drawn (a fixed-seed subsample of larger
-        meshes), to keep rendering fast.
 
     Returns
     -------
@@ -328,7 +324,7 @@ def render_meshes(
         for c, ((V, F), cage) in enumerate(zip(shapes, cage_arrays)):
             ax = fig.add_subplot(nrows, ncols, r * ncols + c + 1, projection="3d")
             ax.set_position([c / ncols, y0_px / total_h, 1.0 / ncols, h_px / total_h])
-            _draw_panel(ax, V, F, cage, elev, azim, limits[c], max_faces)
+            _draw_panel(ax, V, F, cage, elev, azim, limits[c], MAX_FACES)
             if titles is not None and r == 0:
                 fig.text((c + 0.5) / ncols, 1.0 - 4.0 / total_h, titles[c], ha="center",
                          va="top", fontsize=11, parse_math=False)

@@ -1,20 +1,15 @@
 """cagekit_learn: the learned mode of "Neural Cages" on cagekit's coordinate API (torch).
 
-Modules, one concept each:
-
-- :mod:`cagekit_learn.coords`: differentiable, batched mean value coordinates
-  (``bind``/``deform`` as in the core; equal to it to 1e-10 in float64);
-- :mod:`cagekit_learn.losses`: L_MVC, Chamfer / L2 alignment, L_p2f, L_normal, L_symm,
-  the same functions as :mod:`cagekit.losses` (tests prove it);
-- :mod:`cagekit_learn.networks`: the PointNet encoder, N_c and N_d;
-- :mod:`cagekit_learn.data`: folders of meshes (cached samples), pairs, augmentation;
-- :mod:`cagekit_learn.train`: ``cagekit train`` (Adam, checkpoints, exact resume,
-  DistributedDataParallel under torchrun);
-- :mod:`cagekit_learn.checkpoint`: atomic checkpoints read with ``weights_only=True``;
-- :mod:`cagekit_learn.inference`: ``cagekit deform --model [--refine]``.
-
-Install with ``pip install -e '.[learn]'`` (torch 2.13.0). The core package never
-imports this one, nor torch.
+One concept a module: :mod:`~cagekit_learn.coords` (differentiable, batched mean value
+coordinates, ``bind``/``deform`` as in the core, matching it in float64),
+:mod:`~cagekit_learn.losses` (the same terms as :mod:`cagekit.losses`),
+:mod:`~cagekit_learn.networks` (the PointNet encoder, N_c and N_d),
+:mod:`~cagekit_learn.data` (folders of meshes, pairs, augmentation),
+:mod:`~cagekit_learn.train` (``cagekit train``: Adam, checkpoints, exact resume,
+DistributedDataParallel under torchrun), :mod:`~cagekit_learn.checkpoint` (atomic, read with
+``weights_only=True``) and :mod:`~cagekit_learn.inference` (``cagekit deform --model``).
+Install with ``pip install -e '.[learn]'`` (torch 2.13.0); the core package never imports
+this one, nor torch. See docs/architecture.md.
 
 Examples
 --------

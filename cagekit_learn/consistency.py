@@ -1,44 +1,22 @@
 """Fit a cage to a novel character by MVC consistency of landmarks ("Neural Cages", 4.2).
 
-The template character has a cage ``C_s`` and landmarks ``p``; a novel character has the
-matching landmarks ``q`` (same labels). The novel character's cage ``C_s'`` is the cage
-in which every ``q`` has the mean value coordinates that its ``p`` has in ``C_s``, while
-the cage keeps the template cage's local shape:
+Given the template's cage ``C_s`` and landmarks ``p`` and the novel character's matching
+landmarks ``q``, the character's cage ``C'`` minimises
 
 ``L_consistency(C') = sum_(p,q) sum_j (phi_j(p; C_s) - phi_j(q; C'))**2
 + w_L * sum_j (|(L C_s)_j| - |(L C')_j|)**2``
 
-with ``w_L = 0.05`` (the paper's weight) and ``L`` the cotangent Laplacian of the template
-cage ``C_s`` (no mass matrix, :func:`cagekit.geometry.cotangent_laplacian`).
-
-Decisions (ours, where the paper is silent)
--------------------------------------------
-- **One Laplacian.** ``L`` is built once from ``C_s`` and applied to both cages, so the
-  second term compares the lengths of the two cages' Laplacian coordinates under the same
-  weights (a fixed, linear operator: its gradient is exact and cheap).
-- **The aligned frame.** The novel character is first mapped onto the template by a
-  similarity ``A`` (``q = A(q_a)``): ``"similarity"`` fits scale, rotation and translation
-  to the landmarks (least squares, Umeyama), ``"box"`` matches the bounding-box centres
-  and heights of the two rest-pose meshes (:func:`cagekit.alignment.box_alignment`, no
-  rotation), or pass a :class:`~cagekit.alignment.Similarity`. The fit starts from ``C_s``
-  in that frame and is solved there, and
-  the result is mapped back with ``A``. Mean value coordinates are invariant under
-  similarities, so the MVC term is the same in both frames, and the Laplacian term then
-  compares like with like: a character that is a scaled, rotated and moved copy of the
-  template gets exactly that similarity of ``C_s`` back, at zero residual.
-- **Solver.** nlopt's L-BFGS on the 3k cage coordinates, with the analytic gradient of the
-  coordinates from :func:`cagekit_learn.coords.mean_value_coordinates` (float64 autograd,
-  torch on one thread: the tensors are tiny). It stops when an iteration improves the
-  objective by less than 1e-9 of its value, or after ``max_evaluations`` (300: on the
-  humanoid benchmark, 80 landmarks and a 100-vertex cage, the objective after 300
-  evaluations was within 1e-4 of its value after 400, at about 15 ms an evaluation).
-  The result says whether ``L_consistency < tolerance`` was reached (``converged``) and
-  reports both terms, so a residual is never hidden.
-- **The residual is not always small.** When the character's proportions differ from the
-  template's, no cage gives every landmark its template coordinates: on the benchmark's
-  bodies (80 landmarks, sums as in the formula above) ``L_consistency`` ends at 0.02 to
-  0.2, from 3 to 19 at the start. The tolerance 1e-5 is reached by characters that are
-  similar copies of the template (tested).
+with ``w_L = 0.05`` (the paper's) and one ``L``, the cotangent Laplacian of ``C_s``
+(:func:`cagekit.geometry.cotangent_laplacian`), applied to both cages. Ours where the paper
+is silent: the character is first mapped onto the template by a similarity (``"similarity"``,
+Umeyama on the landmarks; ``"box"``, :func:`cagekit.alignment.box_alignment`; or a given
+:class:`~cagekit.alignment.Similarity`), the fit starts from ``C_s`` there and is mapped back,
+so a similar copy of the template gets that similarity of ``C_s`` at zero residual. nlopt's
+L-BFGS uses the analytic gradient of :func:`cagekit_learn.coords.mean_value_coordinates`
+(float64, torch on one thread) and stops at a relative improvement below 1e-9 or after
+``max_evaluations`` (300). The result reports both terms and ``converged``
+(``L_consistency < tolerance``): when proportions differ from the template's no cage fits
+every landmark, and the residual is never hidden. See docs/architecture.md.
 """
 
 from __future__ import annotations

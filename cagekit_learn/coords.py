@@ -1,101 +1,22 @@
 """Differentiable mean value coordinates in torch (batched, chunked, gradient-safe).
 
-This is the torch twin of :mod:`cagekit.coords.mvc` (read its module docstring for the
-derivation and the accuracy analysis); it computes the same numbers with plain tensor
-operations so that the weights can be differentiated with respect to the points *and* the
-cage vertices, for example inside the training loop of "Neural Cages".
-
-Formulation (as in :mod:`cagekit.coords.mvc`)
---------------------------------------------
-Everything is computed relative to the centre of the cage's bounding box. For a point
-``x`` and the cage vertices ``p_j``: ``u_j = (p_j - x) / d_j``. Once per *undirected*
-edge ``(a, b)`` (``a < b``, from :func:`cagekit.cage.cage_topology`) the edge term is
-``G = beta / 2 * X / |X|`` with ``X = u_a x u_b`` and ``beta = atan2(|X|, u_a . u_b)``.
-A face's mean vector is the signed sum of its three edge terms (``face_edge_signs``), its
-``lambda`` comes from Cramer's rule with the adjugate rows ``+-X`` of the opposite edges and
-``det = u_a . (u_b x u_c)``, ``w_j = sum_T lambda_j^T / d_j`` and the coordinates are
-``w / sum(w)``. In float64 the result agrees with the NumPy/numba core to about 1e-12
-(tested to 1e-10), snap zone included.
-
-Switch-over ("snap") zone
--------------------------
-A point within ``snap * D`` (``D`` = the cage's bounding-box diagonal) of a cage vertex, an
-edge or a face gets the limit values there, tested in that order exactly as the core does:
-the vertex's unit weight, linear interpolation along the edge, barycentric coordinates on
-the face. A face whose plane passes within ``snap * D`` of a point lying off the face is
-skipped (contributes zero). Defaults (:data:`DEFAULT_SNAP`): ``1e-13`` in float64 (the
-core's value) and ``1e-6`` in float32, where the formula breaks down within about
-``1e-7 D`` of an edge (at ``1e-8 D`` single weights are off by 0.4); the switch-over
-changes linear precision by at most the distance, ``1e-6 D``, about the rounding of the
-float32 coordinates themselves. ``snap`` must lie in ``[eps**2, 0.1]`` of the dtype.
-
-float32
--------
-Single weights of a point lying *outside* a face, close to its plane (distance ``h``), are
-ill-conditioned: about ``C eps D / h`` with ``C`` up to ~1e3 for points outside the cage
-(:mod:`cagekit.coords.mvc` discusses it for float64, where it stays below 1e-9 within
-``2 D``). Every point outside a sphere-like cage is near the plane of some "horizon" face,
-so in float32 such weights would be wrong by 1e-3 to 1 (partition of unity and linear
-precision would still hold). The float32 pass therefore estimates each row's error,
-``eps * max_f (1 / min_r d_r) / |det_f| / |sum w|`` over the faces whose plane's foot point
-lies outside the triangle, and recomputes in float64 (then casts back) the rows above
-``1e-6`` or whose sum is unresolvable: in practice the points outside the cage and a few
-inside a non-convex one. float32 results then agree with float64 to about 1e-6 (tested to
-1e-5); points well inside the cage cost nothing extra.
-
-Gradients
----------
-The function is differentiable almost everywhere and its gradient is *finite everywhere*
-the forward pass is defined, including points exactly on a vertex, an edge or a face, in
-the plane of a face outside it, or on the line of an edge outside it. Every masked branch
-uses the "double where" rule: the *inputs* of a dangerous operation are replaced by safe
-values where the branch is not taken, before the operation, so no inf or NaN ever enters
-the backward graph (a ``where`` after the fact would still multiply a zero gradient by an
-infinite local derivative):
-
-* ``1 / d_j`` is sanitised (``u_j`` set to a fixed unit vector) for vertices closer than
-  ``snap * D / 2``: those rows snap to the vertex;
-* ``beta / (2 |X|)`` uses a Taylor form in ``s**2 = |X|**2`` when ``u_a . u_b = c > 0`` and
-  ``s < 1e-3 c``: ``(1 / 2c) (1 - t/3 + t**2/5)``, ``t = s**2 / c**2``, smooth through
-  ``s = 0`` (the line of an edge outside it); ``sqrt`` and ``atan2(s, c) / s`` only see
-  ``s**2 > (1e-3 snap)**2``; smaller values with ``c <= 0`` (on an edge's segment, a
-  snapped row) give 0;
-* ``1 / det`` is only taken for faces that are not skipped (``|h| > snap * D`` and
-  ``|det| > tiny**0.4``);
-* the normalisation divides by the weight sum only in rows that use it.
-
-All intermediate values stay finite with finite local derivatives (the thresholds above
-bound them), and masked rows receive exactly zero gradient. Snap rows return the limit
-interpolants as differentiable functions of the point and the cage (barycentric on a face,
-linear along an edge; a vertex's one-hot row is constant): their gradient is that of the
-interpolant, not the (unbounded) derivative of MVC there. Far outside, rows follow the
-core's rule (:data:`cagekit.coords.mvc.FAR_BLEND`): from ``10 D`` to ``20 D`` from the
-cage's centre MVC is blended into the affine extension, beyond it the affine extension alone
-is used, both differentiable. Where a weight sum nearer in cannot be resolved (``|sum w| <=
-1e-15 sum |w|`` in float64, as in the core; not seen in practice), the row gets the
-barycentric coordinates of the closest cage point, computed by the core's numba routine as a
-constant (zero gradient).
-
-Memory
-------
-Points are processed ``chunk_size`` (per batch element) at a time; per chunk the largest
-tensors have ``3 faces x B chunk`` entries, and no tensor has ``B x n x faces x k``. When a
-gradient is needed each chunk runs under :func:`torch.utils.checkpoint.checkpoint`
-(``use_reentrant=False``): the forward pass keeps only the chunk's inputs and the backward
-pass recomputes the chunk, so the memory kept for backward is about the size of the points,
-far below the ``B x n x k`` output (tested: under 4x the output's bytes). Small chunks
-(``B x chunk x faces`` up to 2**17, say 80 landmarks in a 100-vertex cage) are not
-recomputed: there the saved tensors are small and recomputation would double the cost.
-
-Speed
------
-Vectors are held as three component tensors of shape (vertices, edges or faces, ``B *
-chunk``): gathers from vertices to edges and faces are row ``index_select`` calls, all
-element-wise work runs over the points, innermost, and the scatter from faces back to
-vertices is one matrix product with a 0/1 ``(k, 3 m)`` matrix. No Python loop runs over
-points or faces (only over the rare fallback rows). For B = 8, n = 1024 and the 42-vertex
-template cage on 2 CPU cores: float32 about 55 ms forward, 160 ms forward + backward
-(float64: 70 ms and 250 ms).
+The torch twin of :mod:`cagekit.coords.mvc`, whose docstring has the formulation: the same
+numbers from plain tensor operations (relative to the cage's bounding-box centre), so that
+the weights can be differentiated with respect to the points *and* the cage vertices, as in
+the training loop of "Neural Cages". The switch-over zone, its order (vertex, edge, face),
+the skipped in-plane faces, the far-point blend into the affine extension and the
+closest-point fallback (a constant, zero gradient) are the core's; :data:`DEFAULT_SNAP` is
+``1e-13`` in float64 and ``1e-6`` in float32, where the formula breaks down close to an edge
+(``snap`` must lie in ``[eps**2, 0.1]`` of the dtype). In float32, single weights of points
+near the plane of a face they lie outside of are ill-conditioned, so each row's error is
+estimated and rows above ``1e-6`` (or unresolvable) are recomputed in float64. Gradients are
+finite everywhere the forward pass is defined, on vertices, edges and faces too: every masked
+branch replaces the *inputs* of a dangerous operation by safe values before it ("double
+where"), and snap rows are differentiable limit interpolants. Points run ``chunk_size`` at a
+time, as component tensors with the points innermost and one 0/1 matrix product back to the
+vertices; with a gradient, large chunks run under :func:`torch.utils.checkpoint.checkpoint`
+(``use_reentrant=False``), so backward keeps about the points' size, not ``B x n x k``.
+See docs/architecture.md.
 """
 
 from __future__ import annotations

@@ -71,6 +71,7 @@ from cagekit.files import atomic_output
 from cagekit.frame import normalize
 from cagekit.geometry import as_count
 from cagekit.io import SUPPORTED_MESH_EXTENSIONS, load_shape
+from cagekit.progress import progress_bar
 from cagekit.sampling import surface_samples
 
 __all__ = [
@@ -78,6 +79,7 @@ __all__ = [
     "CACHE_FORMAT",
     "FIXED_SOURCE",
     "MESH_EXTENSIONS",
+    "SampleCache",
     "FixedSource",
     "ShapeCollection",
     "augment",
@@ -105,7 +107,6 @@ _MANIFEST_FILE = "manifest.json"
 _TAG_SAMPLES = 0x5A3D1E01
 _TAG_PAIRS = 0x5A3D1E02
 _TAG_AUGMENT = 0x5A3D1E03
-_TAG_SPLIT = 0x5A3D1E04
 _TAG_CORRESPONDING = 0x5A3D1E05
 _TAG_FIXED_PAIRS = 0x5A3D1E06
 _TAG_AUGMENT_TARGET = 0x5A3D1E07
@@ -433,73 +434,12 @@ class ShapeCollection:
         if not paths:
             raise InputError("holds no mesh file (looked for "
                              f"{', '.join(MESH_EXTENSIONS)}, hidden folders skipped)", base)
-
-        explicit = cache_dir is not None and cache_dir is not False
-        cache = None
-        if cache_dir is not False:
-            cache = pathlib.Path(cache_dir) if explicit else base / CACHE_DIRNAME
-            if explicit:
-                try:
-                    cache.mkdir(parents=True, exist_ok=True)
-                except OSError as exc:
-                    raise InputError(f"cannot create the cache folder: "
-                                     f"{exc.strerror or exc}", cache) from None
-                if not os.access(cache, os.W_OK | os.X_OK):
-                    raise InputError("cache folder is not writable", cache)
-
-        old = _read_cache(cache, points, seed) if cache is not None else None
-        old_files = old["files"] if old else {}
-        old_skipped = old["skipped"] if old else {}
-
-        entries, skipped = [], []  # entries: (name, size, mtime_ns, samples or None)
-        todo: list[tuple[int, pathlib.Path]] = []
-        for path in paths:
-            name = path.relative_to(base).as_posix()
-            try:
-                st = path.stat()
-            except OSError as exc:
-                problem = f"cannot read: {exc.strerror or exc}"
-                warnings.warn(f"skipping {path}: {problem}", stacklevel=2)
-                skipped.append({"name": name, "size": -1, "mtime_ns": -1,
-                                "problem": problem})
-                continue
-            key = (st.st_size, st.st_mtime_ns)
-            if name in old_files and old_files[name][0] == key:
-                entries.append([name, *key, old_files[name][1]])
-            elif name in old_skipped and old_skipped[name][0] == key:
-                problem = old_skipped[name][1]
-                warnings.warn(f"skipping {path}: {problem} (remembered by the cache)",
-                              stacklevel=2)
-                skipped.append({"name": name, "size": key[0], "mtime_ns": key[1],
-                                "problem": problem})
-            else:
-                todo.append((len(entries), path))
-                entries.append([name, *key, None])
-
-        bar = None
-        if progress and todo:
-            from tqdm.auto import tqdm
-            bar = tqdm(total=len(todo), desc="sampling shapes", unit="shape")
-        failed = set()
-        try:
-            for index, path in todo:
-                name = entries[index][0]
-                try:
-                    V, F = load_shape(path)
-                    entries[index][3] = _sample_shape(V, F, points, _shape_seed(seed, name))
-                except InputError as exc:
-                    warnings.warn(f"skipping {path}: {exc.problem}", stacklevel=2)
-                    skipped.append({"name": name, "size": entries[index][1],
-                                    "mtime_ns": entries[index][2], "problem": exc.problem})
-                    failed.add(index)
-                if bar is not None:
-                    bar.update(1)
-        finally:
-            if bar is not None:
-                bar.close()
+        cache = SampleCache.for_folder(base, cache_dir)
+        old = cache.read(points, seed) if cache is not None else None
+        entries, skipped, todo = _scan(base, paths, old)
+        failed = _sample_new(entries, skipped, todo, points, seed, progress)
         entries = [e for i, e in enumerate(entries) if i not in failed]
         skipped.sort(key=lambda s: s["name"])
-
         names = [e[0] for e in entries]
         stack = (np.stack([e[3] for e in entries]) if entries
                  else np.empty((0, points, 3), np.float32))
@@ -512,57 +452,11 @@ class ShapeCollection:
                 "skipped": skipped,
             }
             if old is None or old["manifest"] != manifest:
-                _write_cache(cache, manifest, names, stack, explicit)
+                cache.write(manifest, names, stack)
         if len(entries) < 2:
             raise InputError(f"only {len(entries)} usable shape(s) of {len(paths)} mesh "
                              "file(s); at least 2 are needed to make pairs", base)
         return cls(names, stack)
-
-    # ------------------------------------------------------------------------ split
-
-    def split(self, n_test: int, seed=0) -> tuple[ShapeCollection, ShapeCollection]:
-        """A deterministic held-out split.
-
-        Parameters
-        ----------
-        n_test : int
-            Number of shapes held out, ``0 <= n_test <= len(self)``.
-        seed : int, default 0
-            Seed of the split (>= 0).
-
-        Returns
-        -------
-        train, test : ShapeCollection
-            ``len(self) - n_test`` and ``n_test`` shapes, each in the collection's order.
-            The held-out shapes are those with the smallest seeded hash of their name, so
-            the split depends on ``(seed, names)`` only, not on the order of the shapes,
-            and adding shapes moves few of the others.
-
-        Examples
-        --------
-        >>> c = ShapeCollection.from_arrays(list("abcde"), np.zeros((5, 4, 3)))
-        >>> train, test = c.split(2)
-        >>> len(train), len(test), sorted(train.names + test.names) == list("abcde")
-        (3, 2, True)
-        """
-        n_test = as_count(n_test, "n_test")
-        seed = as_count(seed, "seed")
-        if n_test > len(self):
-            raise InputError(f"n_test must be at most the number of shapes ({len(self)}), "
-                             f"got {n_test}")
-        keys = [np.random.SeedSequence([_TAG_SPLIT, seed, zlib.crc32(n.encode("utf-8"))])
-                .generate_state(2, dtype=np.uint32).tolist() + [n] for n in self.names]
-        order = sorted(range(len(self)), key=lambda i: keys[i])
-        test = np.zeros(len(self), dtype=bool)
-        test[order[:n_test]] = True
-        pick = np.flatnonzero
-        halves = (
-            type(self)([self.names[i] for i in pick(~test)], self.points[~test]),
-            type(self)([self.names[i] for i in pick(test)], self.points[test]),
-        )
-        for half in halves:
-            half.rows, half.vertex_count = self.rows, self.vertex_count
-        return halves
 
 
 # ------------------------------------------------------------------------ correspondence
@@ -687,64 +581,144 @@ class FixedSource:
                 raise InputError(exc.problem, path) from None
         return cls(path, samples, rows, len(V), center, scale)
 
-    def normalise(self, V) -> np.ndarray:
-        """(n, 3) positions in the template's own frame -> its normalised frame (float64)."""
-        return (np.asarray(V, dtype=np.float64) - self.center) / self.scale
+
+def _scan(base, paths, old):
+    """What :meth:`ShapeCollection.from_folder` takes from the cache and what it samples.
+
+    Returns ``(entries, skipped, todo)``: ``[name, size, mtime_ns, samples or None]`` per
+    usable file, the skipped files' records, and ``(entry index, path)`` to sample.
+    """
+    old_files = old["files"] if old else {}
+    old_skipped = old["skipped"] if old else {}
+    entries, skipped, todo = [], [], []
+    for path in paths:
+        name = path.relative_to(base).as_posix()
+        try:
+            st = path.stat()
+        except OSError as exc:
+            problem = f"cannot read: {exc.strerror or exc}"
+            warnings.warn(f"skipping {path}: {problem}", stacklevel=3)
+            skipped.append({"name": name, "size": -1, "mtime_ns": -1, "problem": problem})
+            continue
+        key = (st.st_size, st.st_mtime_ns)
+        if name in old_files and old_files[name][0] == key:
+            entries.append([name, *key, old_files[name][1]])
+        elif name in old_skipped and old_skipped[name][0] == key:
+            problem = old_skipped[name][1]
+            warnings.warn(f"skipping {path}: {problem} (remembered by the cache)",
+                          stacklevel=3)
+            skipped.append({"name": name, "size": key[0], "mtime_ns": key[1],
+                            "problem": problem})
+        else:
+            todo.append((len(entries), path))
+            entries.append([name, *key, None])
+    return entries, skipped, todo
+
+
+def _sample_new(entries, skipped, todo, points, seed, progress) -> set:
+    """Read and sample the files of ``todo`` into ``entries``; the indices that failed."""
+    failed = set()
+    with progress_bar("sampling shapes", "shape", total=len(todo),
+                      enabled=bool(progress and todo), leave=True) as bar:
+        for index, path in todo:
+            name = entries[index][0]
+            try:
+                V, F = load_shape(path)
+                entries[index][3] = _sample_shape(V, F, points, _shape_seed(seed, name))
+            except InputError as exc:
+                warnings.warn(f"skipping {path}: {exc.problem}", stacklevel=3)
+                skipped.append({"name": name, "size": entries[index][1],
+                                "mtime_ns": entries[index][2], "problem": exc.problem})
+                failed.add(index)
+            bar.update(1)
+    return failed
 
 
 # ------------------------------------------------------------------------------- cache
 
 
-def _read_cache(cache: pathlib.Path, points: int, seed: int):
-    """The cache's entries when it is valid for ``(points, seed)``, else None."""
-    manifest_path, samples_path = cache / _MANIFEST_FILE, cache / _SAMPLES_FILE
-    if not manifest_path.is_file():
-        return None
-    try:
-        with open(manifest_path, encoding="utf-8") as f:
-            manifest = json.load(f)
-        if (manifest.get("format") != CACHE_FORMAT or manifest.get("points") != points
-                or manifest.get("seed") != seed):
-            return None
-        with np.load(samples_path, allow_pickle=False) as npz:
-            token = str(npz["token"])
-            names = [str(n) for n in npz["names"]]
-            stack = np.asarray(npz["points"], dtype=np.float32)
-        files = manifest["files"]
-        if (token != manifest["token"] or names != [f["name"] for f in files]
-                or stack.shape != (len(files), points, 3)):
-            return None
-        token = manifest.pop("token")
-        return {
-            "manifest": manifest,
-            "files": {f["name"]: ((int(f["size"]), int(f["mtime_ns"])), stack[i])
-                      for i, f in enumerate(files)},
-            "skipped": {s["name"]: ((int(s["size"]), int(s["mtime_ns"])), str(s["problem"]))
-                        for s in manifest.get("skipped", [])},
-        }
-    except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
-        warnings.warn(f"ignoring the unreadable cache in {cache} ({type(exc).__name__}: "
-                      f"{exc}); it will be rebuilt", stacklevel=3)
-        return None
+class SampleCache:
+    """The samples of a folder's shapes, kept between runs (``samples.npz`` and
+    ``manifest.json``, written atomically; see :meth:`ShapeCollection.from_folder`).
 
+    Parameters
+    ----------
+    folder : pathlib.Path
+    explicit : bool
+        The user chose the folder: a failure to write it is an error, not a warning.
+    """
 
-def _write_cache(cache: pathlib.Path, manifest: dict, names, stack, explicit: bool) -> None:
-    """Write samples then manifest atomically; warn (default cache) or raise (explicit)."""
-    token = secrets.token_hex(8)
-    try:
-        cache.mkdir(parents=True, exist_ok=True)
-        with atomic_output(cache / _SAMPLES_FILE) as tmp, open(tmp, "wb") as f:
-            np.savez(f, token=np.array(token), names=np.array(names, dtype=str),
-                     points=stack)
-        with atomic_output(cache / _MANIFEST_FILE) as tmp, open(tmp, "w",
-                                                                encoding="utf-8") as f:
-            json.dump({**manifest, "token": token}, f, indent=1)
-            f.write("\n")
-    except (OSError, InputError) as exc:
-        problem = getattr(exc, "problem", None) or getattr(exc, "strerror", None) or str(exc)
-        if explicit:
-            raise InputError(f"cannot write the cache: {problem}", cache) from None
-        warnings.warn(f"not caching samples: cannot write {cache} ({problem})", stacklevel=3)
+    def __init__(self, folder: pathlib.Path, explicit: bool):
+        self.folder, self.explicit = folder, explicit
+
+    @classmethod
+    def for_folder(cls, root: pathlib.Path, cache_dir) -> SampleCache | None:
+        """The cache of ``root`` (``cache_dir`` as ``from_folder`` takes it), or None."""
+        if cache_dir is False:
+            return None
+        if cache_dir is None:
+            return cls(root / CACHE_DIRNAME, explicit=False)
+        folder = pathlib.Path(cache_dir)
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise InputError(f"cannot create the cache folder: {exc.strerror or exc}",
+                             folder) from None
+        if not os.access(folder, os.W_OK | os.X_OK):
+            raise InputError("cache folder is not writable", folder)
+        return cls(folder, explicit=True)
+
+    def read(self, points: int, seed: int):
+        """The cache's entries when it is valid for ``(points, seed)``, else None."""
+        cache = self.folder
+        manifest_path, samples_path = cache / _MANIFEST_FILE, cache / _SAMPLES_FILE
+        if not manifest_path.is_file():
+            return None
+        try:
+            with open(manifest_path, encoding="utf-8") as f:
+                manifest = json.load(f)
+            if (manifest.get("format") != CACHE_FORMAT or manifest.get("points") != points
+                    or manifest.get("seed") != seed):
+                return None
+            with np.load(samples_path, allow_pickle=False) as npz:
+                token = str(npz["token"])
+                names = [str(n) for n in npz["names"]]
+                stack = np.asarray(npz["points"], dtype=np.float32)
+            files = manifest["files"]
+            if (token != manifest["token"] or names != [f["name"] for f in files]
+                    or stack.shape != (len(files), points, 3)):
+                return None
+            token = manifest.pop("token")
+            return {
+                "manifest": manifest,
+                "files": {f["name"]: ((int(f["size"]), int(f["mtime_ns"])), stack[i])
+                          for i, f in enumerate(files)},
+                "skipped": {s["name"]: ((int(s["size"]), int(s["mtime_ns"])), str(s["problem"]))
+                            for s in manifest.get("skipped", [])},
+            }
+        except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
+            warnings.warn(f"ignoring the unreadable cache in {cache} ({type(exc).__name__}: "
+                          f"{exc}); it will be rebuilt", stacklevel=3)
+            return None
+
+    def write(self, manifest: dict, names, stack) -> None:
+        """Write samples then manifest atomically; warn (default cache) or raise (explicit)."""
+        cache, explicit = self.folder, self.explicit
+        token = secrets.token_hex(8)
+        try:
+            cache.mkdir(parents=True, exist_ok=True)
+            with atomic_output(cache / _SAMPLES_FILE) as tmp, open(tmp, "wb") as f:
+                np.savez(f, token=np.array(token), names=np.array(names, dtype=str),
+                         points=stack)
+            with atomic_output(cache / _MANIFEST_FILE) as tmp, open(tmp, "w",
+                                                                    encoding="utf-8") as f:
+                json.dump({**manifest, "token": token}, f, indent=1)
+                f.write("\n")
+        except (OSError, InputError) as exc:
+            problem = getattr(exc, "problem", None) or getattr(exc, "strerror", None) or str(exc)
+            if explicit:
+                raise InputError(f"cannot write the cache: {problem}", cache) from None
+            warnings.warn(f"not caching samples: cannot write {cache} ({problem})", stacklevel=3)
 
 
 # ------------------------------------------------------------------------------- pairs

@@ -167,8 +167,9 @@ def deform_with_model(model: NeuralCages, source, target, *, points: int | None 
     seed : int, default 0
         Seed of the samples.
     refine : bool, default False
-        Then optimise the cage per pair (:func:`cagekit.deform` with the predicted cage,
-        started from the predicted deformation).
+        Then optimise the cage per pair, started from the predicted deformation (the
+        energy of :func:`cagekit.deform`, as a :class:`cagekit.deformation.CageProblem`
+        solved by :func:`cagekit.deformation.solve` in the unit frames).
     **refine_options
         When refining, the options of :func:`cagekit.deform` that tune the optimisation
         (``symmetry``, ``weights``, ``samples``, ``shape_points``, ``reference``,

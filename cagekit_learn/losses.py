@@ -1,48 +1,17 @@
 """The per-pair energy's terms (section 3.3 of "Neural Cages") in torch, batched.
 
 Every function takes a batch of ``B`` pairs (tensors with a leading batch dimension) and
-returns a ``(B,)`` tensor of per-pair values; the caller weights and averages them.
-Gradients come from autograd. float32 and float64 both work, on any device.
-
-==========================  =============================================================
-term                        value (per pair)
-==========================  =============================================================
-:func:`chamfer_loss`        ``mean_a min_b |a - b|^2 + mean_b min_a |a - b|^2``
-                            (alignment)
-:func:`landmark_loss`       ``mean_l |p_l - t_l|^2`` (alignment with correspondences)
-:func:`symmetry_loss`       Chamfer between a point set and its mirror image
-:func:`cage_symmetry_loss`  ``mean_i |c_i - mirror(c_partner(i)) - offset_i|^2``
-:func:`mvc_loss`            ``mean over n x k entries of min(W, 0)^2`` (negative MVC
-                            weights)
-:func:`p2f_loss`            ``mean_i (d_i(X) - d_i^0)^2``, ``d_i`` the signed distance of
-                            vertex ``i`` to the PCA plane of its neighbourhood
-:func:`normal_loss`         ``mean_i max(1 - |n_i(X) . n_i^0|, 0)``, ``n_i`` the PCA
-                            normal (both: :func:`shape_losses`, one eigen-decomposition)
-==========================  =============================================================
-
-Each term is the same function as its NumPy form in :mod:`cagekit.losses`, value and
-gradient: ``tests/test_learn_losses.py`` compares them on random float64 inputs (values to
-``1e-12`` relative, autograd gradients against the NumPy analytic ones to ``1e-10``).
-The decisions of the NumPy forms carry over:
-
-- Chamfer uses squared distances, the two directions summed, not halved. Nearest
-  neighbours are found without gradient (:func:`torch.cdist` in chunks, exact distances);
-  the gradient is that of the matched pairs' squared distances, the nearest neighbours
-  held fixed.
-- The PCA normal is the eigenvector of the smallest eigenvalue of the neighbourhood
-  covariance. Its backward is the first-order eigenvector perturbation (not
-  :func:`torch.linalg.eigh`'s backward, which is NaN or inf wherever *any* two
-  eigenvalues coincide, as on a regular planar patch); pairs of eigenvalues closer than
-  ``1e-12`` times the covariance's trace contribute no gradient, so gradients are always
-  finite, also for collinear or coincident neighbourhoods. In float32 that floor is
-  ``8 eps`` (about ``1e-6``) instead: float32 eigenvalues carry rounding noise of about
-  ``1e-7`` of the trace, and a ``1e-12`` floor would let that noise through as gradients
-  hundreds of times too large on (nearly) collinear neighbourhoods.
-- A normal's sign is arbitrary; both shape terms compare it with the rest normal up to
-  sign, so the sign never matters.
-
-Loss weights of the paper, used by training to combine the terms:
-``L = L_align + ALPHA_MVC * L_MVC + ALPHA_SHAPE * L_shape``.
+returns a ``(B,)`` tensor of per-pair values, for the caller to weight and average;
+gradients come from autograd, in float32 or float64, on any device. Each term is the same
+function as its NumPy form in :mod:`cagekit.losses`, value and gradient
+(``tests/test_learn_losses.py`` compares them), and states its formula. Chamfer uses squared
+distances, both directions summed, not halved; nearest neighbours are found without gradient
+(exact :func:`torch.cdist` in chunks) and held fixed. The PCA normal's backward is the
+first-order eigenvector perturbation, not :func:`torch.linalg.eigh`'s (NaN or inf wherever
+two eigenvalues coincide, as on a planar patch); eigenvalue pairs closer than ``1e-12``
+(float32: ``8 eps``, above its rounding noise) times the covariance's trace contribute no
+gradient, so gradients stay finite. A normal's sign never matters. Training combines the
+terms with the paper's weights: ``L = L_align + ALPHA_MVC * L_MVC + ALPHA_SHAPE * L_shape``.
 """
 
 from __future__ import annotations
@@ -53,7 +22,7 @@ import torch
 from torch.autograd.function import once_differentiable
 
 from cagekit.errors import InputError
-from cagekit.losses import axis_index
+from cagekit.losses import ALPHA_MVC, ALPHA_SHAPE, axis_index  # the paper's weights, defined once
 
 __all__ = [
     "ALPHA_MVC",
@@ -72,11 +41,6 @@ __all__ = [
     "symmetry_loss",
 ]
 
-ALPHA_MVC = 1.0
-"""Weight of :func:`mvc_loss` in the training energy (the paper's ``alpha_MVC``)."""
-
-ALPHA_SHAPE = 0.1
-"""Weight of the shape terms (:func:`p2f_loss`, :func:`normal_loss`), ``alpha_shape``."""
 
 MAX_ELEMENTS = 1 << 24
 """Default bound on the entries of one chunk of a distance matrix (64 MiB in float32)."""

@@ -50,7 +50,6 @@ from __future__ import annotations
 import csv
 import math
 import os
-import sys
 import time
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
@@ -59,6 +58,8 @@ from pathlib import Path
 import torch
 
 from cagekit.errors import InputError
+from cagekit.losses import ALPHA_MVC, ALPHA_SHAPE
+from cagekit.progress import progress_bar, progress_enabled
 from cagekit_learn import losses
 from cagekit_learn.checkpoint import (
     CHECKPOINT_NAME,
@@ -78,11 +79,13 @@ from cagekit_learn.data import (
 )
 from cagekit_learn.networks import ModelConfig, NeuralCages
 
-__all__ = ["TrainConfig", "TrainResult", "train", "training_loss", "load_collection",
+__all__ = ["TrainConfig", "TrainResult", "Trainer", "train", "training_loss", "load_collection",
            "load_model", "load_source_cage", "LOG_NAME", "TERMS"]
 
 LOG_NAME = "log.csv"
 TERMS = ("align", "mvc", "p2f", "normal", "symmetry")
+#: N_c's learning rate relative to ``lr`` (the paper's ratio)
+NC_LR_FACTOR = 0.1
 
 
 @dataclass
@@ -97,15 +100,15 @@ class TrainConfig:
     run_dir : str
         Where the checkpoint, the log and the config go.
     epochs, batch_size, lr : int, int, float
-    nc_lr_factor : float
-        N_c's learning rate relative to ``lr`` (the paper's 0.1).
     points : int
         Samples per shape.
     seed : int
     device : {"auto", "cpu", "cuda"}
     checkpoint_every : int
         Steps between checkpoints (and one at the end).
-    alpha_mvc, alpha_shape, alpha_symmetry : float
+    alpha_shape : float
+        Weight of the shape terms (the paper's 0.1; 0 turns them off). ``L_MVC`` has the
+        paper's weight :data:`cagekit.losses.ALPHA_MVC`, the symmetry term weight 1.
     symmetry : {"x", "y", "z"} or None
     align : {"chamfer", "l2"}
     augment : bool
@@ -128,14 +131,11 @@ class TrainConfig:
     epochs: int = 100
     batch_size: int = 8
     lr: float = 1e-3
-    nc_lr_factor: float = 0.1
     points: int = 1024
     seed: int = 0
     device: str | None = "auto"
     checkpoint_every: int = 200
-    alpha_mvc: float = losses.ALPHA_MVC
-    alpha_shape: float = losses.ALPHA_SHAPE
-    alpha_symmetry: float = 1.0
+    alpha_shape: float = ALPHA_SHAPE
     symmetry: str | None = None
     align: str = "chamfer"
     augment: bool = True
@@ -324,7 +324,7 @@ def training_loss(model, source, target, config: TrainConfig, knn: int = 16):
     else:
         align = losses.chamfer_loss(X, target)
     terms = {"align": align.mean(), "mvc": losses.mvc_loss(W).mean()}
-    total = terms["align"] + config.alpha_mvc * terms["mvc"]
+    total = terms["align"] + ALPHA_MVC * terms["mvc"]
     if config.alpha_shape:
         if cached is None:
             with torch.no_grad():
@@ -333,7 +333,7 @@ def training_loss(model, source, target, config: TrainConfig, knn: int = 16):
         shape = losses.shape_losses(X, ref)
         terms["p2f"], terms["normal"] = shape["p2f"].mean(), shape["normal"].mean()
         total = total + config.alpha_shape * (terms["p2f"] + terms["normal"])
-    if config.symmetry is not None and config.alpha_symmetry:
+    if config.symmetry is not None:
         partner = _template_partners(net, config.symmetry)
         zero = torch.zeros_like(out["source_cage"])
         symm = (losses.symmetry_loss(X, config.symmetry)
@@ -341,7 +341,7 @@ def training_loss(model, source, target, config: TrainConfig, knn: int = 16):
                 + losses.cage_symmetry_loss(out["deformed_cage"], partner, zero,
                                             config.symmetry))
         terms["symmetry"] = symm.mean()
-        total = total + config.alpha_symmetry * terms["symmetry"]
+        total = total + terms["symmetry"]
     return total, {name: float(value.detach()) for name, value in terms.items()}
 
 
@@ -475,21 +475,6 @@ class _Log:
             self.board.close()
 
 
-def _progress_bar(total, initial, active):
-    if not active:
-        return None
-    try:
-        interactive = sys.stderr.isatty()
-    except (AttributeError, ValueError):
-        interactive = False
-    if not interactive:
-        return None
-    from tqdm import tqdm
-
-    return tqdm(total=total, initial=initial, desc="train", unit="step", file=sys.stderr,
-                dynamic_ncols=True)
-
-
 # ---------------------------------------------------------------------------- training
 
 
@@ -533,7 +518,7 @@ def _optimizer(net: NeuralCages, config: TrainConfig) -> torch.optim.Adam:
     rest = [p for p in net.parameters() if id(p) not in nc]
     groups = [{"params": rest, "lr": config.lr}]
     if nc:
-        groups.append({"params": net.nc_parameters(), "lr": config.lr * config.nc_lr_factor})
+        groups.append({"params": net.nc_parameters(), "lr": config.lr * NC_LR_FACTOR})
     return torch.optim.Adam(groups)
 
 
@@ -575,132 +560,192 @@ def train(config: TrainConfig, resume: bool = False, progress: bool = True,
     -------
     TrainResult
     """
-    run_dir = Path(config.run_dir)
-    payload = None
-    if resume:
-        payload = load_checkpoint(run_dir / CHECKPOINT_NAME)
-        with _usable(run_dir / CHECKPOINT_NAME):
+    return Trainer(config, resume=resume, progress=progress, collection=collection).run()
+
+
+class Trainer:
+    """One training run: set up by the constructor, advanced by :meth:`step`.
+
+    The constructor reads the checkpoint (``resume``), the collection and the fixed
+    source, builds the model and its optimiser (wrapped for DistributedDataParallel under
+    torchrun); :meth:`step` trains one batch, :meth:`checkpoint` writes the run's state
+    (rank 0) and :meth:`run` loops until the budget is spent. :func:`train` is
+    ``Trainer(...).run()``.
+
+    Attributes
+    ----------
+    config : TrainConfig
+        The run's own (the checkpoint's, when resumed).
+    net : NeuralCages
+    step_count, skipped : int
+        Steps taken and steps skipped for a non-finite loss or gradient.
+    steps_per_epoch, total_steps : int
+    rank, world : int
+    """
+
+    def __init__(self, config: TrainConfig, resume: bool = False, progress: bool = True,
+                 collection: ShapeCollection | None = None):
+        self.run_dir = Path(config.run_dir)
+        payload = None
+        if resume:
+            payload = load_checkpoint(self.run_dir / CHECKPOINT_NAME)
+            config = self._resumed_config(config, payload)
+        _check(config)
+        self.rank, self.world, local_rank = _distributed(config.device)
+        self.device = _device(config.device, local_rank)
+        if self.device.type == "cuda":  # collectives without device_ids use the current one
+            torch.cuda.set_device(self.device)
+        if self.rank == 0:
+            self.run_dir.mkdir(parents=True, exist_ok=True)
+        if collection is None:
+            collection = load_collection(config.data, config.points, config.seed,
+                                         progress=progress and self.rank == 0,
+                                         corresponding=config.align == "l2")
+        if (config.fixed_source is not None
+                or config.model.get("fixed_source_points") is not None):
+            config = _with_fixed_source(config, collection)
+        self.config, self.collection, self.progress = config, collection, progress
+        torch.manual_seed(config.seed)
+        self.net = NeuralCages(ModelConfig.from_dict(config.model)).to(self.device)
+        self.fixed = None if self.net.fixed_source is None else (
+            self.net.fixed_source.cpu().numpy())
+        self.optimizer = _optimizer(self.net, config)
+        self.step_count = self.skipped = 0
+        if payload is not None:
+            self._restore(payload)
+        self.model = self.net
+        if self.world > 1:
+            from torch.nn.parallel import DistributedDataParallel
+
+            self.model = DistributedDataParallel(
+                self.net,
+                device_ids=[self.device.index] if self.device.type == "cuda" else None)
+        self.steps_per_epoch = len(shard(self.pairs_of(0), 0, self.world)) // config.batch_size
+        if self.steps_per_epoch < 1:
+            raise InputError(f"{len(collection)} shapes give no full batch of "
+                             f"{config.batch_size} per rank ({self.world} ranks): lower "
+                             "--batch-size")
+        self.total_steps = self.steps_per_epoch * config.epochs
+        if config.max_steps is not None:
+            self.total_steps = min(self.total_steps, config.max_steps)
+        self.trained_pairs, self.last = 0, {}
+
+    def _resumed_config(self, config, payload) -> TrainConfig:
+        with _usable(self.run_dir / CHECKPOINT_NAME):
             stored = TrainConfig.from_dict(payload["config"])
             weights = payload["model"]
-        _refuse_nonfinite(weights, run_dir)
+        _refuse_nonfinite(weights, self.run_dir)
         for name in ("epochs", "max_steps", "max_minutes", "device"):
             if getattr(config, name) is not None:  # None: keep the stopped run's own
                 setattr(stored, name, getattr(config, name))
         stored.run_dir = config.run_dir
-        config = stored
-    _check(config)
-    rank, world, local_rank = _distributed(config.device)
-    device = _device(config.device, local_rank)
-    if device.type == "cuda":
-        torch.cuda.set_device(device)  # collectives without device_ids use the current one
-    if rank == 0:
-        run_dir.mkdir(parents=True, exist_ok=True)
-    if collection is None:
-        collection = load_collection(config.data, config.points, config.seed,
-                                     progress=progress and rank == 0,
-                                     corresponding=config.align == "l2")
-    if (config.fixed_source is not None
-            or config.model.get("fixed_source_points") is not None):
-        config = _with_fixed_source(config, collection)
-    torch.manual_seed(config.seed)
-    net = NeuralCages(ModelConfig.from_dict(config.model)).to(device)
-    fixed = None if net.fixed_source is None else net.fixed_source.cpu().numpy()
+        return stored
 
-    def pairs_of(epoch):
-        if fixed is not None:
-            return fixed_source_pairs(len(collection), epoch, config.seed)
-        return epoch_pairs(len(collection), epoch, config.seed)
-    optimizer = _optimizer(net, config)
-    step = epoch = skipped = 0
-    if payload is not None:
-        with _usable(run_dir / CHECKPOINT_NAME):
-            net.load_state_dict(payload["model"])
-            optimizer.load_state_dict(payload["optimizer"])
-            step, epoch, skipped = payload["step"], payload["epoch"], payload["skipped"]
+    def _restore(self, payload) -> None:
+        with _usable(self.run_dir / CHECKPOINT_NAME):
+            self.net.load_state_dict(payload["model"])
+            self.optimizer.load_state_dict(payload["optimizer"])
+            self.step_count, self.skipped = payload["step"], payload["skipped"]
             torch.set_rng_state(payload["rng"])
             ranks = payload.get("world_size", 1)
-        if ranks != world:
+        if ranks != self.world:
             raise InputError(f"was trained by {ranks} process(es); resume it with the same "
-                             f"number (now {world}) so that it continues exactly",
-                             str(run_dir))
-    model = net
-    if world > 1:
-        from torch.nn.parallel import DistributedDataParallel
+                             f"number (now {self.world}) so that it continues exactly",
+                             str(self.run_dir))
 
-        model = DistributedDataParallel(
-            net, device_ids=[device.index] if device.type == "cuda" else None)
-    steps_per_epoch = len(shard(pairs_of(0), 0, world)) // config.batch_size
-    if steps_per_epoch < 1:
-        raise InputError(f"{len(collection)} shapes give no full batch of "
-                         f"{config.batch_size} per rank ({world} ranks): lower --batch-size")
-    total_steps = steps_per_epoch * config.epochs
-    if config.max_steps is not None:
-        total_steps = min(total_steps, config.max_steps)
-    log = bar = None
-    start, trained_pairs, last = time.perf_counter(), 0, {}
+    def pairs_of(self, epoch: int):
+        """The (source, target) index pairs of an epoch, before sharding."""
+        if self.fixed is not None:
+            return fixed_source_pairs(len(self.collection), epoch, self.config.seed)
+        return epoch_pairs(len(self.collection), epoch, self.config.seed)
 
-    def checkpoint():
-        if rank == 0:
-            save_checkpoint(run_dir / CHECKPOINT_NAME, {
-                "model": net.state_dict(), "optimizer": optimizer.state_dict(),
-                "config": config.to_dict(), "model_config": net.config.to_dict(),
-                "step": step, "epoch": step // steps_per_epoch, "skipped": skipped,
-                "rng": torch.get_rng_state(), "world_size": world})
-        if world > 1:
+    def step(self) -> dict:
+        """Train one batch (skipped when its loss or gradient is not finite); its terms."""
+        config = self.config
+        epoch, index = divmod(self.step_count, self.steps_per_epoch)
+        pairs = shard(self.pairs_of(epoch), self.rank, self.world)
+        rows = pairs[index * config.batch_size:(index + 1) * config.batch_size]
+        batch = make_batch(self.collection, rows, epoch=epoch,
+                           step=index * self.world + self.rank, seed=config.seed,
+                           augmentation=config.augment, source_points=self.fixed)
+        source = batch["source"].to(self.device)
+        target = batch["target"].to(self.device)
+        self.optimizer.zero_grad(set_to_none=True)
+        loss, terms = training_loss(self.model, source, target, config)
+        loss.backward()
+        if _all_finite(loss, self.net, self.world):
+            self.optimizer.step()
+        else:
+            self.skipped += 1
+            self.optimizer.zero_grad(set_to_none=True)
+        self.step_count += 1
+        self.trained_pairs += len(rows) * self.world
+        self.last = {"loss": float(loss.detach()), **terms}
+        return self.last
+
+    def checkpoint(self) -> None:
+        """Write the run's state (rank 0), then wait for every rank."""
+        if self.rank == 0:
+            save_checkpoint(self.run_dir / CHECKPOINT_NAME, {
+                "model": self.net.state_dict(), "optimizer": self.optimizer.state_dict(),
+                "config": self.config.to_dict(), "model_config": self.net.config.to_dict(),
+                "step": self.step_count, "epoch": self.step_count // self.steps_per_epoch,
+                "skipped": self.skipped, "rng": torch.get_rng_state(),
+                "world_size": self.world})
+        if self.world > 1:
             import torch.distributed as dist
 
             dist.barrier()
 
-    model.train()
-    try:
-        log = _Log(run_dir, rank == 0, step)
-        bar = _progress_bar(total_steps, step, progress and rank == 0)
-        while step < total_steps:
-            epoch, index = divmod(step, steps_per_epoch)
-            pairs = shard(pairs_of(epoch), rank, world)
-            rows = pairs[index * config.batch_size:(index + 1) * config.batch_size]
-            batch = make_batch(collection, rows, epoch=epoch, step=index * world + rank,
-                               seed=config.seed, augmentation=config.augment,
-                               source_points=fixed)
-            source, target = batch["source"].to(device), batch["target"].to(device)
-            optimizer.zero_grad(set_to_none=True)
-            loss, terms = training_loss(model, source, target, config)
-            loss.backward()
-            if _all_finite(loss, net, world):
-                optimizer.step()
-            else:
-                skipped += 1
-                optimizer.zero_grad(set_to_none=True)
-            step += 1
-            trained_pairs += len(rows) * world
-            last = {"loss": float(loss.detach()), **terms}
-            log.write({"step": step, "epoch": epoch, **last, "skipped": skipped,
-                       "seconds": round(time.perf_counter() - start, 3)})
-            if bar is not None:
-                bar.update(1)
-                bar.set_postfix({k: f"{v:.4g}" for k, v in last.items()}, refresh=False)
-            out_of_time = (config.max_minutes is not None
-                           and time.perf_counter() - start > 60 * config.max_minutes)
-            if world > 1 and config.max_minutes is not None:
-                import torch.distributed as dist
-
-                flag = torch.tensor([1.0 if out_of_time else 0.0], device=device)
-                dist.all_reduce(flag, op=dist.ReduceOp.MAX)
-                out_of_time = bool(flag.item() > 0.5)
-            if step % config.checkpoint_every == 0 or step == total_steps or out_of_time:
-                checkpoint()
-            if out_of_time:
-                break
-    finally:
-        if log is not None:
-            log.close()
-        if bar is not None:
-            bar.close()
-        if _OWNED_GROUP:
+    def _out_of_time(self, start: float) -> bool:
+        """Whether ``max_minutes`` are spent (the same answer on every rank)."""
+        minutes = self.config.max_minutes
+        out = minutes is not None and time.perf_counter() - start > 60 * minutes
+        if self.world > 1 and minutes is not None:
             import torch.distributed as dist
 
-            dist.destroy_process_group()
-            _OWNED_GROUP.clear()
-    seconds = time.perf_counter() - start
-    return TrainResult(net, step, step // steps_per_epoch, skipped, last, seconds,
-                       trained_pairs / seconds if seconds > 0 else float("nan"))
+            flag = torch.tensor([1.0 if out else 0.0], device=self.device)
+            dist.all_reduce(flag, op=dist.ReduceOp.MAX)
+            out = bool(flag.item() > 0.5)
+        return out
+
+    def run(self) -> TrainResult:
+        """Step until the budget (epochs, steps, minutes) is spent, checkpointing."""
+        log = bar = None
+        start = time.perf_counter()
+        self.model.train()
+        try:
+            log = _Log(self.run_dir, self.rank == 0, self.step_count)
+            bar = progress_bar("train", "step", total=self.total_steps,
+                               initial=self.step_count,
+                               enabled=self.progress and self.rank == 0 and progress_enabled(),
+                               leave=True)
+            while self.step_count < self.total_steps:
+                epoch = self.step_count // self.steps_per_epoch
+                last = self.step()
+                log.write({"step": self.step_count, "epoch": epoch, **last,
+                           "skipped": self.skipped,
+                           "seconds": round(time.perf_counter() - start, 3)})
+                bar.update(1)
+                bar.set_postfix({k: f"{v:.4g}" for k, v in last.items()}, refresh=False)
+                out_of_time = self._out_of_time(start)
+                if (self.step_count % self.config.checkpoint_every == 0
+                        or self.step_count == self.total_steps or out_of_time):
+                    self.checkpoint()
+                if out_of_time:
+                    break
+        finally:
+            if log is not None:
+                log.close()
+            if bar is not None:
+                bar.close()
+            if _OWNED_GROUP:
+                import torch.distributed as dist
+
+                dist.destroy_process_group()
+                _OWNED_GROUP.clear()
+        seconds = time.perf_counter() - start
+        return TrainResult(self.net, self.step_count,
+                           self.step_count // self.steps_per_epoch, self.skipped, self.last,
+                           seconds,
+                           self.trained_pairs / seconds if seconds > 0 else float("nan"))

@@ -339,26 +339,6 @@ def test_from_arrays_and_validation():
         ShapeCollection.from_arrays(["a"], np.full((1, 8, 3), np.nan))
 
 
-def test_split_deterministic_held_out():
-    names = [f"s{i:02d}" for i in range(20)]
-    c = ShapeCollection.from_arrays(names, np.arange(20 * 2 * 3).reshape(20, 2, 3))
-    train, test = c.split(5, seed=1)
-    assert len(train) == 15 and len(test) == 5
-    assert sorted(train.names + test.names) == names
-    assert train.names == sorted(train.names)  # collection order kept
-    for part in (train, test):
-        for name, pts in zip(part.names, part.points):
-            assert np.array_equal(pts, c.points[names.index(name)])
-    assert c.split(5, seed=1)[1].names == test.names
-    assert c.split(5, seed=2)[1].names != test.names
-    # independent of the order of the shapes
-    rev = ShapeCollection.from_arrays(names[::-1], c.points[::-1])
-    assert sorted(rev.split(5, seed=1)[1].names) == test.names
-    assert len(c.split(0)[1]) == 0
-    with pytest.raises(InputError):
-        c.split(21)
-
-
 # ----------------------------------------------------------------------------- pairs
 
 

@@ -144,8 +144,8 @@ def test_large_mesh_is_reduced_before_drawing(tmp_path, monkeypatch):
 
 def test_render_is_deterministic(tmp_path):
     V, F = sphere(n_theta=300, n_phi=80)
-    render_meshes([(V, F)], tmp_path / "a.png", size=(100, 100), max_faces=5000)
-    render_meshes([(V, F)], tmp_path / "b.png", size=(100, 100), max_faces=5000)
+    render_meshes([(V, F)], tmp_path / "a.png", size=(100, 100))
+    render_meshes([(V, F)], tmp_path / "b.png", size=(100, 100))
     assert np.array_equal(image(tmp_path / "a.png"), image(tmp_path / "b.png"))
 
 

@@ -16,6 +16,7 @@ from cagekit.cli.common import (
     json_option,
     preview_up_option,
     progress_bar,
+    progress_enabled,
     shape_writer,
     start_command,
 )
@@ -173,7 +174,8 @@ def deform(ctx, source, target, out, method, cage_path, faces, save_cage, symmet
     options = {"symmetry": None if symmetry == "none" else symmetry,
                "weights": weights or None, "reference": reference, "coords": coords}
     with progress_bar("deform", "eval",
-                      enabled=method == "cage" and (model is None or refine)) as bar:
+                      enabled=progress_enabled() and method == "cage"
+                      and (model is None or refine)) as bar:
         try:
             result = _run(src, tgt, cage, pairs, model, method, faces, refine, seed,
                           options, bar_callback(bar))

@@ -94,7 +94,3 @@ def fit_cage(ctx, mesh, out, faces, method, components, preview, up, seed, as_js
         click.echo(f"wrote {out}: {report['faces']}-face cage, every check passed; volume "
                    f"{ratio_text} x the {report['volume_reference']}'s, largest distance "
                    f"{report['max_distance']:.4f} x the diagonal ({seconds:.2f} s)")
-
-
-#: the families of :mod:`cagekit.datasets.synthetic` (its ``FAMILIES``), listed here so that
-#: ``--help`` imports nothing

@@ -12,6 +12,7 @@ from cagekit.cli.common import (
     emit_json,
     json_option,
     progress_bar,
+    progress_enabled,
     start_command,
 )
 from cagekit.errors import InputError
@@ -63,7 +64,7 @@ def synth(ctx, family, count, out, seed, fmt, resolution, as_json):
             raise InputError("already exists; remove it or write to another folder", path)
     make = MAKERS[family]
     vertices = []
-    bar = progress_bar(family, "shape", total=count, enabled=count > 1)
+    bar = progress_bar(family, "shape", total=count, enabled=progress_enabled() and count > 1)
     try:
         with output_folder(out):
             for i, path in enumerate(paths):

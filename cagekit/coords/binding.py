@@ -83,7 +83,7 @@ class CageBinding:
         >>> from cagekit.shapes import box_cage
         >>> v, f = box_cage()
         >>> b = bind([[0.5, 0.0, 0.0]], v, f)
-        >>> b.deform(2 * v).round(12).tolist()
+        >>> (b.deform(2 * v).round(12) + 0.0).tolist()  # + 0.0: no negative zero
         [[1.0, 0.0, 0.0]]
         """
         new = np.asarray(new_cage_v, dtype=np.float64)
@@ -103,8 +103,7 @@ class CageBinding:
         return cage_encloses(points, self.cage_v, self.cage_f)
 
 
-def bind(points, cage_v, cage_f, method: str = "mvc", chunk_size: int | None = None, *,
-         check: bool = True) -> CageBinding:
+def bind(points, cage_v, cage_f, method: str = "mvc", *, check: bool = True) -> CageBinding:
     """Compute the coordinates of points with respect to a cage.
 
     Parameters
@@ -122,9 +121,6 @@ def bind(points, cage_v, cage_f, method: str = "mvc", chunk_size: int | None = N
     method : {"mvc"}, default "mvc"
         Mean value coordinates (Ju, Schaefer & Warren 2005). Green coordinates are not
         available yet.
-    chunk_size : int, optional
-        Unused by MVC, whose scratch memory is already independent of ``n``; accepted so
-        callers can pass it uniformly.
     check : bool, default True
         Run the exact self-intersection test on the cage (about a millisecond per 100
         faces). False skips it, for speed, when the cage is known to be free of it (a

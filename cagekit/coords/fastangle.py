@@ -1,20 +1,13 @@
 """The angle between two unit vectors, fast and to full double precision, for numba kernels.
 
-``np.arctan2`` costs about 20 ns a call in a numba loop, more than the rest of the MVC edge
-term together. :func:`angle_from_sin_cos` computes ``atan2(s, c)`` for ``s >= 0`` with one
-division and a polynomial:
-
-1. reduce to ``y = lo / hi`` in ``[0, 1]`` (``lo, hi`` = min and max of ``s`` and ``|c|``),
-   using ``atan(z) = pi/2 - atan(1/z)``;
-2. reduce ``y > tan(pi/8)`` with ``atan(y) = pi/4 + atan((lo - hi) / (lo + hi))``, so the
-   argument lies in ``[-tan(pi/8), tan(pi/8)]``;
-3. evaluate ``atan(y) = y * P(y**2)`` by Estrin's scheme, ``P`` of degree 11, fitted
-   here by least squares on Chebyshev nodes against ``np.arctan`` in long double (see
-   :func:`fit_atan_polynomial`);
-4. undo the reductions, and use ``pi - angle`` for ``c < 0``.
-
-The relative error is below 1e-15 over ``[0, pi]`` (tested against long double), within a
-few units in the last place of ``np.arctan2``.
+:func:`angle_from_sin_cos` computes ``atan2(s, c)`` for ``s >= 0`` with one division and a
+polynomial instead of a libm call, the costliest part of the MVC edge term otherwise: it
+reduces to ``y = min(s, |c|) / max(s, |c|)`` in ``[0, 1]`` (``atan(z) = pi/2 - atan(1/z)``),
+then to ``[-tan(pi/8), tan(pi/8)]`` (``atan(y) = pi/4 + atan((lo - hi) / (lo + hi))``),
+evaluates ``atan(y) = y * P(y**2)`` by Estrin's scheme with ``P`` of degree 11, fitted by
+least squares on Chebyshev nodes against long double (:func:`fit_atan_polynomial`), and
+undoes the reductions, with ``pi - angle`` for ``c < 0``. The tests check it against long
+double over ``[0, pi]``; it is within a few units in the last place of ``np.arctan2``.
 """
 
 from __future__ import annotations

@@ -1,88 +1,24 @@
 """Mean value coordinates for closed triangle cages (Ju, Schaefer & Warren 2005).
 
-The formulation
----------------
-For a point ``x`` let ``A_j = p_j - x``, ``d_j = |A_j|`` and ``u_j = A_j / d_j``. Every cage
-triangle ``T = (a, b, c)`` projects to a spherical triangle on the unit sphere around ``x``;
-its *mean vector* (the integral of the outward unit normal over it) is a sum over its edges,
-
-    m_T = 1/2 * sum_{directed edges (i -> j) of T}  beta_ij * n_ij,
-    beta_ij = angle(u_i, u_j),   n_ij = (u_i x u_j) / |u_i x u_j|,
-
-and the triangle's coordinates ``lambda`` solve ``sum_k lambda_k u_k = m_T``. The weights are
-``w_j = sum_T lambda_j^T / d_j`` and the coordinates are ``w / sum(w)``.
-
-This is the vector form of the paper (its section 3.2), not the closed "c_i, s_i" form of its
-pseudo-code and of VTK. Two choices make it accurate close to the cage, where the closed form
-loses digits to cancellation (``pi - h`` and ``1 - c_i**2`` both vanish on a face):
-
-* ``beta_ij * n_ij`` is computed **once per undirected edge** and enters the two faces that
-  share the edge with opposite signs, so ``sum_T m_T = 0`` holds to rounding whatever the
-  error of each edge term. Since ``sum_j w_j A_j = sum_T (U_T lambda_T)``, linear precision
-  then only depends on the residual of each 3x3 solve.
-* The 3x3 solve uses Cramer's rule with the adjugate rows ``u_b x u_c`` (the same edge cross
-  products, reused) and ``det = u_a . (u_b x u_c)``. Its residual is of the order of
-  ``eps * |lambda|``; near a face or an edge ``|lambda|`` and the weight sum grow together
-  like ``1 / distance``, so the *normalised* coordinates keep linear precision to about
-  ``eps * D`` all the way down to the switch-over below. Angles are ``atan2(|u_i x u_j|,
-  u_i . u_j)``, accurate at 0 and at pi, evaluated by :mod:`cagekit.coords.fastangle`.
-
-Switch-over (exact interpolation)
----------------------------------
-Points within ``snap * D`` (``D`` = the cage's bounding-box diagonal, ``snap = 1e-13`` by
-default) of a cage vertex, of an edge or of a face get the limit values of MVC there: the
-vertex's unit weight, linear interpolation along the edge, barycentric coordinates on the
-face. The error this switch makes in linear precision is at most the distance, ``snap * D``.
-A face whose plane passes within ``snap * D`` of ``x`` while ``x`` lies outside the face is
-skipped (its contribution tends to zero there).
-
-Single weights near a face's plane
-----------------------------------
-For a point at distance ``h`` from the plane of a face that it lies *outside* of (on the
-plane's extension), that face's ``lambda`` is a ratio of two quantities of order ``h``, and
-single weights carry an error of about ``1e-16 D / h`` (about 1e-10 at ``h = 1e-6 D``; the
-textbook formula has the same limitation). The error lies along ``sum_j dw_j A_j = 0``, so
-partition of unity and linear precision are not affected, and it vanishes in the exact
-switch-over zone, where such faces are skipped.
-
-Far outside
------------
-At distance ``R`` from the cage the weight sum decays like ``D**3 / R**4`` while single
-weights decay like ``D**2 / R**3`` and cancel: far outside, the coordinates are an
-ill-conditioned function of the point, whatever the formula. Within ``2 D`` of the cage's
-centre linear precision stays below ``1e-12 D`` (tested to ``1e-6 D``). Beyond, its error
-grows like ``(R / D)**4`` (worst case measured by ``benchmarks/mvc_precision.py``:
-``3e-10 D`` at ``10 D``, ``3e-6 D`` at ``100 D``, ``0.1 D`` at ``1000 D``, a cage vertex or
-the origin from about ``1e15 D`` on; the textbook formula is worse by one to six orders of
-magnitude).
-
-So far points get other coordinates (:data:`FAR_BLEND`): from ``10 D`` to ``20 D`` from the
-centre of the cage's bounding box the MVC row is blended (smoothstep in ``R``) into the
-*affine extension* of the cage (:func:`affine_extension_weights`), and beyond ``20 D`` the
-affine extension alone is used. Its coordinates satisfy partition of unity and linear
-precision exactly in exact arithmetic, and so does any blend of the two: the rest cage maps
-every point to itself at any distance, to rounding relative to ``R`` (a point at ``1e20``
-keeps about 16 digits of its distance, not of a coordinate of size 1 beside it: no
-coordinates of size ``R`` can do better), and a moved cage moves far points by the
-least-squares affine fit of the cage vertices' motion. Only within ``10 D`` are the
-coordinates MVC's; a point so far that its coordinates overflow float64 (about ``1e300
-D``) is refused with an :class:`~cagekit.errors.InputError`. If a weight sum nearer in
-cannot be resolved at all (``|sum w| <= 1e-15 sum |w|``, not seen in practice), the point
-gets the barycentric coordinates of its closest cage point.
-
-Speed
------
-Points are processed ``_LANES = 16`` at a time with the point index innermost and no
-branches in the loops, so that LLVM vectorises them (AVX2: four points per instruction);
-the edge angle is a polynomial (:mod:`cagekit.coords.fastangle`), not a libm call. A point
-that lies within ``snap * D`` of any face's plane poisons its own lane with NaN and is
-looked at again alone (the switch-over cases, or the formula with that face skipped).
-``benchmarks/bench_mvc.py`` measures it against VTK and a dense NumPy version.
-
-Memory
-------
-Only the ``(n, k)`` output is proportional to ``n``. Scratch space is ``O(k + e + m)`` per
-chunk of points (a few hundred kB for a 1,000-face cage), reused across the chunk.
+This is the paper's vector form (its section 3.2), not the closed "c_i, s_i" form of its
+pseudo-code and of VTK, which loses digits to cancellation close to the cage. With ``u_j``
+the unit vectors from the point to the cage vertices, each undirected edge's term
+``beta_ij n_ij`` (angles by :mod:`cagekit.coords.fastangle`) is computed once and enters its
+two faces with opposite signs, so the faces' mean vectors sum to zero to rounding; each
+face's ``lambda`` comes from Cramer's rule with the same cross products, ``w_j = sum_T
+lambda_j^T / d_j``, and the coordinates are ``w / sum(w)``. Linear precision then holds to
+about ``eps * D`` (``D`` the cage's bounding-box diagonal) down to the switch-over: points
+within ``snap * D`` (:data:`DEFAULT_SNAP`) of a vertex, an edge or a face get MVC's limit
+values there, and a face whose plane passes that close to a point outside it is skipped.
+Single weights of a point at distance ``h`` from the plane of a face it lies outside of are
+off by about ``eps * D / h``, in a direction that keeps partition of unity and linear
+precision. Far out MVC is ill-conditioned whatever the formula: from ``10 D`` to ``20 D``
+from the cage's centre rows blend into the affine extension (:data:`FAR_BLEND`,
+:func:`affine_extension_weights`), used alone beyond; points whose coordinates would
+overflow are refused; an unresolvable weight sum falls back to the closest cage point. The
+numba kernel runs ``_LANES`` points at a time, branch-free so that LLVM vectorises it, and
+redoes alone points near a face's plane; scratch is ``O(k + e + m)`` per chunk. See
+docs/architecture.md.
 """
 
 from __future__ import annotations
@@ -399,7 +335,7 @@ def _mvc_kernel(points, cage_v, faces, edges, face_edges, face_signs, face_n, fa
                     closest_point_weights(points[i], cage_v, faces, row)
 
 
-def mean_value_coordinates(points, cage_v, cage_f, snap: float = DEFAULT_SNAP, out=None,
+def mean_value_coordinates(points, cage_v, cage_f, snap: float = DEFAULT_SNAP,
                            check: bool = True):
     """Mean value coordinates of points with respect to a closed triangle cage.
 
@@ -415,8 +351,6 @@ def mean_value_coordinates(points, cage_v, cage_f, snap: float = DEFAULT_SNAP, o
     snap : float, default 1e-13
         Switch-over distance to the exact limits on vertices, edges and faces, relative to
         the cage's bounding-box diagonal (see the module docstring).
-    out : (n, k) float64 ndarray, optional
-        Where to write the result (C-contiguous). Allocated when not given.
     check : bool, default True
         Validate the cage with :func:`cagekit.cage.check_cage`.
 
@@ -457,10 +391,7 @@ def mean_value_coordinates(points, cage_v, cage_f, snap: float = DEFAULT_SNAP, o
     norms = np.linalg.norm(normals, axis=1, keepdims=True)
     normals = np.divide(normals, norms, out=np.zeros_like(normals), where=norms > 0)
     n, k = len(px), len(cv)
-    if out is None:
-        out = np.empty((n, k), dtype=np.float64)
-    elif out.shape != (n, k) or out.dtype != np.float64 or not out.flags.c_contiguous:
-        raise ValueError(f"out must be a C-contiguous float64 array of shape {(n, k)}")
+    out = np.empty((n, k), dtype=np.float64)
     face_off = np.einsum("ij,ij->i", cv[faces[:, 0]], normals)
     if n:
         _mvc_kernel(px, cv, np.ascontiguousarray(faces), topo.edges, topo.face_edges,
@@ -545,7 +476,7 @@ def affine_extension_weights(points, cage_v, cage_f) -> np.ndarray:
     >>> from cagekit.shapes import box_cage
     >>> v, f = box_cage()
     >>> w = affine_extension_weights([[1e6, 0.0, 0.0]], v, f)
-    >>> (w @ v).round(6).tolist(), round(float(w.sum()), 9)
+    >>> ((w @ v).round(6) + 0.0).tolist(), round(float(w.sum()), 9)
     ([[1000000.0, 0.0, 0.0]], 1.0)
     """
     centre, diag, M = affine_extension_matrix(cage_v, cage_f)

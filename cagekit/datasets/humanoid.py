@@ -1,44 +1,20 @@
 """Procedural humanoids with a skeleton, linear-blend skinning and named landmarks.
 
-A body is made from a :class:`BodyShape` (proportions) and posed with local joint
-rotations, which gives posed characters *with ground truth* for deformation transfer
-(Neural Cages, section 4.2): pose a template, transfer the pose to a novel body, and
-compare with the novel body posed directly by the same rotations.
-
-Conventions
------------
-- **Frame and units.** Metres, y up, the character faces +z, the soles touch ``y = 0``
-  and the top of the head is at ``y = height`` (1.75 for the template). Rest pose is a
-  T-pose: arms straight along +-x with the palms down (thumbs forward, +z), legs
-  slightly apart. The rest pose is mirror-symmetric about ``x = 0``; ``l_`` names are on
-  the character's left, which is +x.
-- **Mesh.** A union of overlapping parts, each a generalized cylinder (closed rings of
-  vertices along a bone, closed by rounded caps that end in a pole vertex): torso, neck,
-  head, and per side upper arm, forearm, palm, five fingers (three joints each), thigh,
-  shin and foot - 25 components. Every part is closed, 2-manifold and outward-oriented
-  (positive volume), with no degenerate triangle. Fine detail: the fingers and their
-  knuckles, a face relief (nose, brow ridge, eye sockets, lips, chin, ears), knee caps,
-  calves, chest and buttocks.
-- **Consistent topology.** Ring and sector counts depend only on ``resolution``, so the
-  faces, the vertex count, the part ranges and the landmark indices are the same for
-  every body shape and every pose. Only vertex positions change.
-- **Skeleton.** :data:`JOINTS` (parents first) and :data:`PARENTS`. All joints have the
-  world orientation in the rest pose, so a local rotation about x, y or z is a rotation
-  about those axes in the parent's posed frame.
-- **Skinning.** Linear blend skinning. Along each chain of bones (spine, arm, finger,
-  leg) a vertex's weight moves from one bone to the next with a smoothstep over a zone
-  around the joint (20 % of the segment on limbs, 25 % on fingers, 30 % on the spine,
-  50 % on the neck); the outer top of the torso blends into the clavicles. At most three
-  non-zero weights per vertex; the head is rigid.
-- **Landmarks.** Named vertex indices (:data:`LANDMARK_NAMES`), the same for every body:
-  ``{side}_{part}_{position}_{direction}`` on the limbs (side ``l``/``r``; part
-  ``upper_arm``, ``forearm``, ``thigh``, ``shin``; position ``prox``, ``mid``, ``dist``
-  = 20, 50, 80 % along the bone from the body outwards; direction ``front`` (+z),
-  ``back``, ``outer`` and ``inner``; on the arms ``outer`` is up (+y in the T-pose) and
-  ``inner`` is down (the armpit side); on the legs ``outer`` is away from the body), then
-  single points such as ``head_top``, ``nose_tip``, ``chin``, ``l_eye``, ``l_hand_tip``
-  (tip of the middle finger), ``l_toe``, ``l_heel``, ``chest_front``, ``belly``,
-  ``back`` and ``pelvis_front``.
+A :class:`BodyShape` (proportions) posed by local joint rotations gives characters *with
+ground truth* for deformation transfer ("Neural Cages", section 4.2): transfer a template's
+pose to a novel body and compare with that body posed by the same rotations. Metres, y up,
+facing +z, soles on ``y = 0``; the rest pose is a T-pose (palms down), mirror-symmetric
+about ``x = 0``, ``l_`` on the character's left (+x). The mesh is 25 overlapping closed,
+2-manifold, outward generalized cylinders (torso, neck, head with a face relief; per side
+upper arm, forearm, palm, five fingers, thigh, shin, foot). Ring and sector counts depend on
+``resolution`` only, so faces, part ranges and landmark indices are the same for every body and
+pose. :data:`JOINTS` (parents first) and :data:`PARENTS` share the world orientation at
+rest; skinning is a smoothstep between consecutive bones near each joint (at most three
+weights a vertex, rigid head). :data:`LANDMARK_NAMES` are vertex indices named
+``{side}_{part}_{position}_{direction}`` on the limbs (``prox``/``mid``/``dist`` at 20, 50
+and 80 % along the bone from the body out; ``front`` is +z, ``outer`` is up on the arms and
+away from the body on the legs), then single points such as ``head_top``, ``nose_tip``,
+``l_hand_tip`` (middle finger) and ``l_heel``. See docs/architecture.md.
 
 Examples
 --------

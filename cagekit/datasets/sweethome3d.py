@@ -1,17 +1,15 @@
 """Real artist-made models: Debian's ``sweethome3d-furniture`` catalogs.
 
 Debian's package ``sweethome3d-furniture`` (``apt-get install sweethome3d-furniture``) ships
-five furniture libraries of Sweet Home 3D, 820 OBJ models by real artists: furniture,
-characters, animals, plants, vehicles. Each library is a zip archive
-``/usr/share/sweethome3d/furniture/<Catalog>.sh3f`` holding the OBJ files (with their
-materials and textures) and a ``PluginFurnitureCatalog.properties`` (Java properties, ISO
-8859-1) that names each model, its category, its creator and the library's licence:
-Blend Swap CC-0 (public domain), Blend Swap CC-BY, Kator Legaz, Reallusion and Scopia (CC BY
-3.0: credit the creator of any model shown or shipped).
-
-:func:`models` unpacks the archives once into a cache folder and lists the models;
-``benchmarks/bench_assets.py`` and the furniture benchmarks use it. Nothing is downloaded:
-without the package, :func:`models` raises an :class:`~cagekit.errors.InputError` that says
+five Sweet Home 3D furniture libraries, 820 OBJ models by real artists (furniture,
+characters, animals, plants, vehicles), as zip archives
+``/usr/share/sweethome3d/furniture/<Catalog>.sh3f``; each one's
+``PluginFurnitureCatalog.properties`` (Java properties, ISO 8859-1) names every model, its
+category, its creator and the library's licence: Blend Swap CC-0 (public domain), Blend Swap
+CC-BY, Kator Legaz, Reallusion and Scopia (CC BY 3.0: credit the creator of any model shown
+or shipped). :func:`models` unpacks the archives once into a cache folder and lists the
+models for ``benchmarks/bench_assets.py`` and the furniture benchmarks. Nothing is
+downloaded: without the package it raises an :class:`~cagekit.errors.InputError` that says
 how to install it.
 
 Examples

@@ -1,31 +1,15 @@
 """Procedural shape families: chairs, tables and vases with fine detail, made from a seed.
 
-Each shape function draws its proportions from documented ranges (``*_RANGES`` below)
-with ``numpy.random.default_rng(seed)``, one draw per parameter in a fixed order; a
-keyword argument replaces the drawn value without changing the others. The same seed and
-keywords always give bit-identical arrays.
-
-Conventions
------------
-- **Frame and units.** y is up and the shape stands on the ground plane ``y = 0`` (its
-  lowest point); it is centred on the y axis and mirror-symmetric about the plane
-  ``x = 0``. Units are metres: a chair is 0.7-1.05 high, a table 0.65-0.8, a vase
-  0.25-0.55. Chairs face +z (the back is at -z).
-- **Meshes.** A shape is the union of parts (subdivided boxes, surfaces of revolution,
-  tori) that may overlap one another. Every part is a closed, 2-manifold, outward-oriented
-  triangle mesh (positive volume) with no degenerate triangle; parts share no vertex, so
-  each part is one connected component. Triangles are near-equilateral or near-right,
-  with aspect ratios below about 4: long parts are subdivided along their length, and
-  rings of a surface of revolution have as many vertices as their size asks for (fewer
-  near the axis, so no needle fans), curved profiles (beads, ridges, rims) are sampled
-  finely.
-- **Size.** The triangle size is chosen so that a shape has about ``4500 * resolution**2``
-  vertices (2,000-8,000 at the default ``resolution=1``).
-
-Detail: chairs have back slats, spindles or ladder rails, a top rail and stretchers;
-tables have an apron, square, tapered or turned (beaded) legs and a lower shelf or
-stretchers; vases are hollow (an opening with a rolled rim, an inner wall and a floor)
-with a foot ring, ridges, optional flutes and optional handles (tori).
+Each shape draws its proportions from the documented ``*_RANGES`` with
+``numpy.random.default_rng(seed)``, one draw per parameter in a fixed order; a keyword
+replaces its drawn value without changing the others, and the same seed and keywords give
+bit-identical arrays. Shapes are in metres, y up, standing on ``y = 0``, centred on the y
+axis and mirror-symmetric about ``x = 0`` (chairs face +z). A shape is a union of possibly
+overlapping parts (subdivided boxes, surfaces of revolution, tori), each a closed,
+2-manifold, outward, vertex-disjoint component with near-equilateral or near-right
+triangles (aspect ratio below about 4) and no degenerate one; the triangle size gives about
+``4500 * resolution**2`` vertices. Detail: slats, spindles, rails and stretchers on chairs;
+aprons, shaped legs and shelves on tables; hollow vases with rims, ridges, flutes, handles.
 
 Examples
 --------

@@ -1,0 +1,29 @@
+"""Every docstring example runs (doctest), in the core, the learned mode and the apps."""
+
+import doctest
+import importlib
+import pathlib
+
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+
+def module_names():
+    for package in ("cagekit", "cagekit_learn", "apps"):
+        for path in sorted((ROOT / package).rglob("*.py")):
+            parts = path.relative_to(ROOT).with_suffix("").parts
+            if parts[-1] == "__main__":
+                continue
+            yield ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+@pytest.mark.parametrize("name", list(module_names()))
+def test_docstring_examples(name, tmp_path, monkeypatch):
+    if name.startswith(("cagekit_learn", "apps.deformation_transfer")):
+        pytest.importorskip("torch")
+    monkeypatch.chdir(tmp_path)  # examples that write files write them here
+    module = importlib.import_module(name)
+    result = doctest.testmod(module, optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE,
+                             report=True, verbose=False)
+    assert result.failed == 0, f"{result.failed} failing example(s) in {name} (see stdout)"
