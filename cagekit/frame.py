@@ -2,8 +2,9 @@
 
 Every algorithm works on shapes moved into a frame (bounding-box centre at the origin,
 divided by a scale) and hands results back in the user's own frame and units. The paper's
-frame (DESIGN.md, "Normalisation") divides by the largest half-extent; :func:`fit_cage`,
-whose tolerances are fractions of the bounding-box diagonal, divides by the diagonal.
+frame (docs/architecture.md, section 4) divides by the largest half-extent;
+:func:`fit_cage`, whose tolerances are fractions of the bounding-box diagonal, divides by
+the diagonal.
 """
 
 from __future__ import annotations

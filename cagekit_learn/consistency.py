@@ -9,9 +9,10 @@ landmarks ``q``, the character's cage ``C'`` minimises
 with ``w_L = 0.05`` (the paper's) and one ``L``, the cotangent Laplacian of ``C_s``
 (:func:`cagekit.geometry.cotangent_laplacian`), applied to both cages. Ours where the paper
 is silent: the character is first mapped onto the template by a similarity (``"similarity"``,
-Umeyama on the landmarks; ``"box"``, :func:`cagekit.alignment.box_alignment`; or a given
-:class:`~cagekit.alignment.Similarity`), the fit starts from ``C_s`` there and is mapped back,
-so a similar copy of the template gets that similarity of ``C_s`` at zero residual. nlopt's
+Umeyama on the landmarks; or a given :class:`~cagekit.alignment.Similarity`, such as the
+bounding-box one of :func:`cagekit.alignment.box_alignment`), the fit starts from ``C_s``
+there and is mapped back, so a similar copy of the template gets that similarity of ``C_s``
+at zero residual. nlopt's
 L-BFGS uses the analytic gradient of :func:`cagekit_learn.coords.mean_value_coordinates`
 (float64, torch on one thread) and stops at a relative improvement below 1e-9 or after
 ``max_evaluations`` (300). The result reports both terms and ``converged``

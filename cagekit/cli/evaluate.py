@@ -1,4 +1,4 @@
-"""``cagekit eval``: Chamfer distance and dCotLap of a deformed shape (DESIGN.md's metrics)."""
+"""``cagekit eval``: CD and dCotLap of a deformed shape (docs/architecture.md, section 4)."""
 
 from __future__ import annotations
 

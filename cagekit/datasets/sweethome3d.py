@@ -36,7 +36,7 @@ FURNITURE_DIR = "/usr/share/sweethome3d/furniture"
 #: the package's five catalogs (archive stems)
 CATALOGS = ("BlendSwap-CC-0", "BlendSwap-CC-BY", "KatorLegaz", "Reallusion", "Scopia")
 
-#: the catalogs DESIGN.md names for furniture benchmarks
+#: the catalogs of furniture (the benchmarks' real assets)
 FURNITURE_CATALOGS = ("BlendSwap-CC-0", "BlendSwap-CC-BY", "KatorLegaz")
 
 _PROPERTIES = "PluginFurnitureCatalog.properties"
