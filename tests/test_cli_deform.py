@@ -4,7 +4,7 @@ import json
 
 import numpy as np
 import pytest
-from builders import assert_bad_input, cagekit, load_obj
+from builders import assert_bad_input, bumpy_blob, cagekit, load_obj
 
 from cagekit.io import save_mesh
 from cagekit.landmarks import save_landmarks
@@ -13,8 +13,6 @@ from cagekit.landmarks import save_landmarks
 @pytest.fixture(scope="module")
 def pair(tmp_path_factory):
     """A small symmetric blob and a non-affine variation of it, written as OBJ files."""
-    from test_deform import bumpy_blob
-
     folder = tmp_path_factory.mktemp("pair")
     V, F = bumpy_blob(subdivisions=2)
     Vt = V * 3.0 + 10.0

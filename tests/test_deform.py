@@ -3,20 +3,13 @@
 import numpy as np
 import pytest
 import trimesh
+from builders import bumpy_blob
 
 import cagekit
 from cagekit.deformation import DEFAULT_WEIGHTS, CageEnergy
 from cagekit.errors import InputError
 from cagekit.losses import mirror
 from cagekit.metrics import chamfer_distance, dcotlap, evaluate
-
-
-def bumpy_blob(stretch=(1.0, 0.6, 0.45), subdivisions=3):
-    """An ellipsoid with bumps, mirror-symmetric about x = 0 (and z = 0), about 640 vertices."""
-    m = trimesh.creation.icosphere(subdivisions)
-    V = np.asarray(m.vertices, dtype=float)
-    bumps = 1.0 + 0.06 * np.cos(9 * V[:, 1]) * np.cos(7 * np.abs(V[:, 0]))
-    return V * bumps[:, None] * stretch, np.asarray(m.faces, dtype=np.int64)
 
 
 @pytest.fixture(scope="module")

@@ -2,11 +2,9 @@
 
 import doctest
 import importlib
-import pathlib
 
 import pytest
-
-ROOT = pathlib.Path(__file__).resolve().parents[1]
+from builders import REPOSITORY as ROOT
 
 
 def module_names():

@@ -1,14 +1,12 @@
-"""Tests of cagekit.geometry: Laplacian, faces, normalisation, sampling, neighbourhoods, PCA."""
+"""Tests of cagekit.geometry: Laplacian, faces, neighbourhoods, PCA normals and planes."""
 
 import numpy as np
 import pytest
 import scipy.sparse
-import trimesh
-from scipy.spatial.transform import Rotation
+from builders import SQUARE_F, SQUARE_V, grid, icosphere, tilt
 
 from cagekit import geometry
 from cagekit.errors import InputError
-from cagekit.frame import denormalize, normalize
 from cagekit.geometry import (
     Neighborhoods,
     cotangent_laplacian,
@@ -18,43 +16,6 @@ from cagekit.geometry import (
     remove_duplicate_faces,
     vertex_neighborhoods,
 )
-from cagekit.sampling import sample_surface
-
-SQUARE_V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], dtype=float)
-SQUARE_F = np.array([[0, 1, 2], [1, 3, 2]])
-
-
-def grid(nx=7, ny=6, jitter=0.0, seed=0):
-    """Flat triangulated grid in z = 0: vertices (nx*ny, 3), faces, interior mask."""
-    x, y = np.meshgrid(
-        np.arange(nx, dtype=float), np.arange(ny, dtype=float), indexing="ij"
-    )
-    interior = ((x > 0) & (x < nx - 1) & (y > 0) & (y < ny - 1)).ravel()
-    V = np.stack([x.ravel(), y.ravel(), np.zeros(nx * ny)], axis=1)
-    V[interior, :2] += jitter * np.random.default_rng(seed).uniform(
-        -1, 1, (interior.sum(), 2)
-    )
-    idx = np.arange(nx * ny).reshape(nx, ny)
-    a, b, c, d = (
-        idx[:-1, :-1].ravel(),
-        idx[1:, :-1].ravel(),
-        idx[:-1, 1:].ravel(),
-        idx[1:, 1:].ravel(),
-    )
-    F = np.concatenate([np.stack([a, b, c], 1), np.stack([b, d, c], 1)])
-    return V, F, interior
-
-
-def tilt(V, seed=1):
-    """Apply an arbitrary rotation and translation."""
-    R = Rotation.random(random_state=seed).as_matrix()
-    return V @ R.T + np.array([3.0, -2.0, 0.7]), R
-
-
-def icosphere(subdivisions=3):
-    m = trimesh.creation.icosphere(subdivisions=subdivisions)
-    return np.asarray(m.vertices, dtype=float), np.asarray(m.faces, dtype=np.int64)
-
 
 # ------------------------------------------------------------------ cotangent Laplacian
 
@@ -142,118 +103,6 @@ def test_remove_duplicate_faces_empty_and_clean_input():
         remove_duplicate_faces([[0, 1]])
     with pytest.raises(InputError):
         remove_duplicate_faces([[0, -1, 2]])
-
-
-# ---------------------------------------------------------------------- normalise
-
-
-def test_normalize_frame_and_round_trip():
-    rng = np.random.default_rng(3)
-    V = rng.normal(size=(200, 3)) * [3.0, 0.5, 1.0] + [10.0, -4.0, 2.0]
-    Vn, center, scale = normalize(V)
-    assert (
-        center.shape == (3,) and center.dtype == np.float64 and isinstance(scale, float)
-    )
-    np.testing.assert_allclose(center, (V.min(0) + V.max(0)) / 2)
-    assert scale == pytest.approx(np.max(V.max(0) - V.min(0)) / 2)
-    assert np.abs(Vn).max() == pytest.approx(1.0, abs=1e-15)
-    np.testing.assert_allclose(Vn.min(0) + Vn.max(0), 0.0, atol=1e-15)
-    longest = np.argmax(V.max(0) - V.min(0))
-    assert Vn[:, longest].max() == pytest.approx(1.0, abs=1e-15)
-    assert Vn[:, longest].min() == pytest.approx(-1.0, abs=1e-15)
-    np.testing.assert_allclose(denormalize(Vn, center, scale), V, rtol=0, atol=1e-13)
-
-
-def test_normalize_rejects_degenerate_input():
-    with pytest.raises(InputError, match="zero extent"):
-        normalize([[1.0, 2.0, 3.0]])
-    with pytest.raises(InputError, match="zero extent"):
-        normalize(np.ones((5, 3)))
-    with pytest.raises(InputError, match="no points"):
-        normalize(np.zeros((0, 3)))
-    with pytest.raises(InputError, match="NaN"):
-        normalize([[0, 0, 0], [np.nan, 1, 1]])
-    with pytest.raises(InputError):
-        denormalize(SQUARE_V, [0, 0, 0], 0.0)
-    with pytest.raises(InputError):
-        denormalize(SQUARE_V, [0, 0], 1.0)
-
-
-@pytest.mark.parametrize("scale", [1e-290, 1e-150, 1.0, 1e150, 1e300])
-def test_bounding_box_is_resolvable_at_any_scale(scale):
-    from cagekit.frame import bounding_box, bounding_box_diagonal
-
-    V = np.array([[0.0, 0, 0], [2.0, 1, 0], [1.0, 0, 1]]) * scale + 3.0 * scale
-    center, extent = bounding_box(V)
-    np.testing.assert_allclose(center / scale, [4.0, 3.5, 3.5], rtol=1e-15)
-    np.testing.assert_allclose(extent / scale, [2.0, 1.0, 1.0], rtol=1e-15)
-    assert bounding_box_diagonal(extent) / scale == pytest.approx(np.sqrt(6.0), rel=1e-15)
-    assert np.abs(normalize(V)[0]).max() == pytest.approx(1.0)
-
-
-def test_bounding_box_refuses_what_float64_cannot_resolve():
-    from cagekit.frame import bounding_box
-
-    with pytest.raises(InputError, match="too small to resolve"):
-        bounding_box([[0.0, 0, 0], [1e-300, 0, 0]])
-    with pytest.raises(InputError, match="overflows"):
-        bounding_box([[-1e308, 0, 0], [1e308, 0, 0]])
-    with pytest.raises(InputError, match="coincide"):
-        bounding_box([[5.0, 5, 5], [5.0, 5, 5]])
-
-
-# ------------------------------------------------------------------------ sampling
-
-
-def test_sample_surface_is_seeded_and_leaves_global_state_alone():
-    V, F = icosphere(2)
-    np.random.seed(123)
-    state = np.random.get_state()[1].copy()
-    a = sample_surface(V, F, 500, seed=7)
-    b = sample_surface(V, F, 500, seed=7)
-    c = sample_surface(V, F, 500, seed=8)
-    np.testing.assert_array_equal(np.random.get_state()[1], state)
-    assert a.shape == (500, 3) and a.dtype == np.float64
-    np.testing.assert_array_equal(a, b)
-    assert not np.allclose(a, c)
-
-
-def test_sample_surface_points_lie_on_their_faces():
-    V, F, _ = grid(4, 3, jitter=0.2)
-    V, _ = tilt(V)
-    P, fi = sample_surface(V, F, 2000, seed=0, return_faces=True)
-    assert fi.dtype == np.int64 and fi.shape == (2000,)
-    a, b, c = V[F[fi, 0]], V[F[fi, 1]], V[F[fi, 2]]
-    # barycentric coordinates by least squares on the two edge vectors
-    E = np.stack([b - a, c - a], axis=2)
-    rhs = np.einsum("nki,nk->ni", E, P - a)[:, :, None]
-    uv = np.linalg.solve(np.einsum("nki,nkj->nij", E, E), rhs)[:, :, 0]
-    np.testing.assert_allclose(a + np.einsum("nij,nj->ni", E, uv), P, atol=1e-12)
-    assert (uv >= -1e-12).all() and (uv.sum(axis=1) <= 1 + 1e-12).all()
-
-
-def test_sample_surface_is_area_uniform():
-    # triangle 0 has area 1.5, triangle 1 has area 0.5: ratio 3:1
-    V = np.array(
-        [[0, 0, 0], [3, 0, 0], [0, 1, 0], [10, 0, 0], [11, 0, 0], [10, 1, 0]], float
-    )
-    F = np.array([[0, 1, 2], [3, 4, 5]])
-    P, fi = sample_surface(V, F, 40000, seed=0, return_faces=True)
-    frac = np.mean(fi == 0)
-    assert frac == pytest.approx(0.75, abs=0.01)  # binomial std is 0.002
-    # uniform inside a triangle: the mean sample is the centroid
-    np.testing.assert_allclose(P[fi == 0].mean(0), V[[0, 1, 2]].mean(0), atol=0.02)
-    np.testing.assert_allclose(P[fi == 1].mean(0), V[[3, 4, 5]].mean(0), atol=0.01)
-
-
-def test_sample_surface_rejects_bad_input():
-    with pytest.raises(InputError, match="zero total area"):
-        sample_surface([[0, 0, 0], [1, 0, 0], [2, 0, 0]], [[0, 1, 2]], 10)
-    with pytest.raises(InputError, match="no faces"):
-        sample_surface(SQUARE_V, None, 10)
-    with pytest.raises(InputError):
-        sample_surface(SQUARE_V, SQUARE_F, -1)
-    assert sample_surface(SQUARE_V, SQUARE_F, 0).shape == (0, 3)
 
 
 # ------------------------------------------------------------------ neighbourhoods

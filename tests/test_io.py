@@ -1,36 +1,23 @@
-"""Tests for cagekit.io: mesh, point-cloud and landmark files."""
+"""Tests for cagekit.io: mesh and point-cloud files (reading, writing, bad files)."""
 
-import json
 import os
 import struct
 
 import numpy as np
 import pytest
 import trimesh
+from builders import bits, expect_error, write
 from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from cagekit import files as cfiles
 from cagekit import io as cio
 from cagekit import landmarks as clm
-from cagekit.errors import InputError, LandmarkFileError, MeshFileError, MeshFileWarning
+from cagekit.errors import InputError, MeshFileError, MeshFileWarning
 
 # A tetrahedron whose vertex order is deliberately not sorted in any way.
 TET_V = np.array([[0.5, 0.25, 1.0], [0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
 TET_F = np.array([[1, 3, 2], [1, 2, 0], [2, 3, 0], [3, 1, 0]])
-
-
-def write(path, content):
-    mode = "wb" if isinstance(content, bytes) else "w"
-    with open(path, mode) as fh:
-        fh.write(content)
-    return path
-
-
-def bits(a):
-    """The exact bit pattern of a float64 array (distinguishes -0.0 and 0.0)."""
-    return np.ascontiguousarray(a, dtype=np.float64).view(np.int64)
 
 
 def binary_ply(V, polygons, endian="<", vtype=("double", "d"), extra=b""):
@@ -44,17 +31,6 @@ def binary_ply(V, polygons, endian="<", vtype=("double", "d"), extra=b""):
     for poly in polygons:
         body += struct.pack(f"{endian}B{len(poly)}i", len(poly), *poly)
     return header.encode() + body + extra
-
-
-def expect_error(path, cls=MeshFileError, loader=cio.load_shape, match=None):
-    with pytest.raises(cls) as info:
-        loader(path)
-    message = str(info.value)
-    assert os.path.basename(os.fspath(path)) in message
-    assert "\n" not in message
-    if match is not None:
-        assert match in message, message
-    return message
 
 
 # ----------------------------------------------------------------------------- round trips
@@ -521,87 +497,6 @@ def test_save_rejects_unsupported_destinations(tmp_path):
         cio.save_points(tmp_path / "p.xyz", [[0, 0, np.nan]])
 
 
-def test_atomic_output_replaces_on_success_only(tmp_path):
-    target = write(tmp_path / "result.json", "old")
-    os.chmod(target, 0o640)
-    with pytest.raises(RuntimeError), cfiles.atomic_output(target) as tmp:
-        assert os.path.dirname(tmp) == str(tmp_path) and tmp.endswith(".json")
-        write(tmp, "half written")
-        raise RuntimeError("crash while writing")
-    assert target.read_text() == "old" and os.listdir(tmp_path) == ["result.json"]
-    with cfiles.atomic_output(target) as tmp:
-        write(tmp, "new")
-        assert target.read_text() == "old"
-    assert target.read_text() == "new" and os.listdir(tmp_path) == ["result.json"]
-    assert os.stat(target).st_mode & 0o777 == 0o640
-    with cfiles.atomic_output(tmp_path / "fresh.png") as tmp:
-        write(tmp, b"\x89PNG")
-    assert (tmp_path / "fresh.png").read_bytes() == b"\x89PNG"
-
-
-def _save_in_a_new_process(target, timeout=60):
-    """``save_mesh(target)`` in another process: the "next run" of a command."""
-    import subprocess
-    import sys
-
-    code = ("import sys\nfrom cagekit.io import save_mesh\n"
-            "save_mesh(sys.argv[1], [[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])\n")
-    subprocess.run([sys.executable, "-c", code, str(target)], check=True, timeout=timeout)
-
-
-def test_a_killed_writers_temporary_is_removed_by_the_next_run(tmp_path):
-    """SIGKILL leaves a hidden temporary behind; the next run writing into the folder
-    removes it, while a live writer's temporary (locked) is left alone."""
-    import signal
-    import subprocess
-    import sys
-
-    target = tmp_path / "big.obj"
-    code = ("import sys, time\n"
-            "from cagekit.files import atomic_output\n"
-            "with atomic_output(sys.argv[1]) as tmp:\n"
-            "    open(tmp, 'w').write('x' * 100000)\n"
-            "    print('writing', flush=True)\n"
-            "    time.sleep(600)\n")
-    writer = subprocess.Popen([sys.executable, "-c", code, str(target)],
-                              stdout=subprocess.PIPE, text=True)
-    try:
-        assert writer.stdout.readline().strip() == "writing"
-        (temporary,) = [n for n in os.listdir(tmp_path) if n.startswith(".big.tmp-")]
-        _save_in_a_new_process(target)  # the writer is alive: its file stays
-        assert temporary in os.listdir(tmp_path)
-    finally:
-        writer.send_signal(signal.SIGKILL)
-        writer.wait()
-    assert temporary in os.listdir(tmp_path)  # what SIGKILL leaves
-    (tmp_path / "notes.txt").write_text("not a temporary")
-    _save_in_a_new_process(target)
-    assert sorted(os.listdir(tmp_path)) == ["big.obj", "notes.txt"]
-
-
-def test_a_fifo_named_like_a_temporary_does_not_block_writes(tmp_path):
-    os.mkfifo(tmp_path / ".a.tmp-0123abcd.obj")
-    _save_in_a_new_process(tmp_path / "a.obj", timeout=30)  # no hang
-    assert sorted(os.listdir(tmp_path)) == [".a.tmp-0123abcd.obj", "a.obj"]
-
-
-def test_output_folder_removes_the_folders_it_made_when_the_block_fails(tmp_path):
-    with pytest.raises(RuntimeError), cfiles.output_folder(tmp_path / "a" / "b" / "c"):
-        raise RuntimeError("the run failed")
-    assert os.listdir(tmp_path) == []
-    (tmp_path / "kept").mkdir()
-    with pytest.raises(KeyboardInterrupt), cfiles.output_folder(tmp_path / "kept" / "new"):
-        raise KeyboardInterrupt
-    assert os.listdir(tmp_path) == ["kept"] and os.listdir(tmp_path / "kept") == []
-    with cfiles.output_folder(tmp_path / "x" / "y") as folder:
-        write(os.path.join(folder, "f.txt"), "out")
-    assert (tmp_path / "x" / "y" / "f.txt").read_text() == "out"
-    write(tmp_path / "file", "a file")
-    with pytest.raises(InputError, match="is not a folder"), \
-            cfiles.output_folder(tmp_path / "file" / "sub"):
-        pass
-
-
 def test_failed_save_leaves_existing_file_untouched(tmp_path, monkeypatch):
     target = write(tmp_path / "m.obj", "precious")
 
@@ -613,97 +508,6 @@ def test_failed_save_leaves_existing_file_untouched(tmp_path, monkeypatch):
     with pytest.raises(OSError, match="disk full"):
         cio.save_mesh(target, TET_V, TET_F)
     assert target.read_text() == "precious" and os.listdir(tmp_path) == ["m.obj"]
-
-
-# ----------------------------------------------------------------------------- landmarks
-
-
-EXPECTED_MARKS = {"nose": [0.5, 1.25, -2.0], "left_eye": [1e-3, 2.0, 3.0]}
-
-
-def test_picked_landmarks_with_9_and_10_columns(tmp_path):
-    path = write(
-        tmp_path / "a.picked",
-        "2\nPicked 12 0.2 0.3 0.5 nose 0.5 1.25 -2\n\n"
-        "Picked 7 1 0 0 left_eye 1e-3 2 3 41\n",
-    )
-    marks = clm.load_landmarks(path)
-    assert list(marks) == ["nose", "left_eye"]
-    assert {k: v.tolist() for k, v in marks.items()} == EXPECTED_MARKS
-    assert all(v.dtype == np.float64 and v.shape == (3,) for v in marks.values())
-
-
-def test_json_and_csv_landmarks(tmp_path):
-    as_json = write(tmp_path / "a.json", json.dumps(EXPECTED_MARKS))
-    with_header = write(tmp_path / "a.csv", "label,x,y,z\nnose,0.5,1.25,-2\nleft_eye, 1e-3, 2, 3\n")
-    no_header = write(tmp_path / "b.csv", "nose,0.5,1.25,-2\n\n# comment\nleft_eye,1e-3,2,3\n")
-    for path in (as_json, with_header, no_header):
-        marks = clm.load_landmarks(path)
-        assert {k: v.tolist() for k, v in marks.items()} == EXPECTED_MARKS
-        assert list(marks) == ["nose", "left_eye"]
-
-
-@pytest.mark.parametrize("ext", [".json", ".csv"])
-def test_landmark_round_trip_is_exact(tmp_path, ext):
-    marks = {"tip, of nose": np.array([0.1, 1 / 3, -0.0]), "chin": [1e300, 5e-324, 2.0]}
-    clm.save_landmarks(tmp_path / f"m{ext}", marks)
-    loaded = clm.load_landmarks(tmp_path / f"m{ext}")
-    assert list(loaded) == list(marks)
-    for label, value in marks.items():
-        assert np.array_equal(bits(loaded[label]), bits(np.asarray(value, dtype=float)))
-
-
-BAD_LANDMARKS = [
-    ("empty.json", "", "is empty"),
-    ("count.picked", "3\nPicked 1 0 0 1 a 0 0 0\n", "says 3 landmarks but 1 follow"),
-    ("header.picked", "Picked 1 0 0 1 a 0 0 0\n", "number of landmarks"),
-    ("zero.picked", "0\n", "no landmarks"),
-    ("columns.picked", "1\nPicked 1 0 0 1 a 0 0\n", "expected 9 or 10 columns"),
-    ("eleven.picked", "1\nPicked 1 0 0 1 a 0 0 0 4 5\n", "found 11"),
-    ("face.picked", "1\nPicked one 0 0 1 a 0 0 0\n", "must be numbers"),
-    ("text.picked", "1\nPicked 1 0 0 1 a 0 zero 0\n", "not numbers"),
-    ("nan.picked", "1\nPicked 1 0 0 1 a 0 nan 0\n", "not finite"),
-    ("dup.picked", "2\nPicked 1 0 0 1 a 0 0 0\nPicked 2 0 0 1 a 1 1 1\n", "duplicate label 'a'"),
-    ("dup.json", '{"a": [0, 0, 0], "a": [1, 1, 1]}', "duplicate label 'a'"),
-    ("nan.json", '{"a": [0, NaN, 0]}', "not finite"),
-    ("bigint.json", '{"a": [0, 1' + "0" * 400 + ', 0]}', "entry 1: coordinates of 'a' are not"),
-    ("text.json", '{"a": [0, "1", 0]}', "[x, y, z] numbers"),
-    ("bool.json", '{"a": [0, true, 0]}', "[x, y, z] numbers"),
-    ("two.json", '{"a": [0, 1]}', "[x, y, z] numbers"),
-    ("list.json", "[[0, 1, 2]]", "JSON object"),
-    ("broken.json", '{"a": [0, 1, 2]', "not valid JSON"),
-    ("nothing.json", "{}", "no landmarks"),
-    ("columns.csv", "a,1,2\n", "expected 4 columns"),
-    ("text.csv", "a,1,two,3\n", "not numbers"),
-    ("inf.csv", "a,1,inf,3\n", "not finite"),
-    ("dup.csv", "a,1,2,3\na,1,2,3\n", "line 2: duplicate label 'a'"),
-    ("label.csv", ",1,2,3\n", "empty label"),
-    ("onlyheader.csv", "label,x,y,z\n", "no landmarks"),
-    ("marks.txt", "a 1 2 3\n", "unknown landmark extension"),
-    ("separators.picked", "\x1c\x1d\n", "is empty"),
-    ("carriage.csv", "a,1,2,3\nb\rc,4,5,6\n", "line 2: expected 4 columns"),
-    ("huge.csv", "a" * 200_000 + ",1,2,3\n", "invalid CSV"),
-]
-
-
-@pytest.mark.parametrize("name, content, match", BAD_LANDMARKS, ids=[b[0] for b in BAD_LANDMARKS])
-def test_bad_landmark_files(tmp_path, name, content, match):
-    path = write(tmp_path / name, content)
-    expect_error(path, cls=LandmarkFileError, loader=clm.load_landmarks, match=match)
-
-
-def test_save_landmarks_validates(tmp_path):
-    with pytest.raises(InputError, match="face index and barycentric"):
-        clm.save_landmarks(tmp_path / "m.picked", EXPECTED_MARKS)
-    with pytest.raises(InputError, match="3 finite numbers"):
-        clm.save_landmarks(tmp_path / "m.json", {"a": [0, 1]})
-    with pytest.raises(InputError, match="3 finite numbers"):
-        clm.save_landmarks(tmp_path / "m.json", {"a": [0, 1, np.nan]})
-    with pytest.raises(InputError, match="non-empty string"):
-        clm.save_landmarks(tmp_path / "m.csv", {" a": [0, 1, 2]})
-    with pytest.raises(InputError, match="no landmarks"):
-        clm.save_landmarks(tmp_path / "m.csv", {})
-    assert os.listdir(tmp_path) == []
 
 
 def test_supported_extension_tuples():

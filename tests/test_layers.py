@@ -7,11 +7,10 @@ imports only the core.
 """
 
 import ast
-import pathlib
 
 import pytest
+from builders import REPOSITORY as ROOT
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
 LAYERS = {"core": 0, "learn": 1, "apps": 2, "cli": 3}
 
 

@@ -17,6 +17,7 @@ ill-conditioned, for the core as for this module (about 1e-16 D / h, see
 import numpy as np
 import pytest
 import torch
+from builders import diag, unit_normals
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -54,15 +55,6 @@ CAGES = {
     "template": template_cage(),
     "star": star_cage(),
 }
-
-
-def diag(v):
-    return float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
-
-
-def unit_normals(v, f):
-    n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
-    return n / np.linalg.norm(n, axis=1, keepdims=True)
 
 
 def edges_of(f):

@@ -10,10 +10,9 @@ import pytest
 torch = pytest.importorskip("torch")
 trimesh = pytest.importorskip("trimesh")
 
-from click.testing import CliRunner  # noqa: E402
+from builders import TINY_MODEL, invoke, states_equal  # noqa: E402
 
 from cagekit import io  # noqa: E402
-from cagekit.cli import main  # noqa: E402
 from cagekit.errors import InputError  # noqa: E402
 from cagekit.frame import normalize  # noqa: E402
 from cagekit_learn.checkpoint import load_checkpoint  # noqa: E402
@@ -30,7 +29,6 @@ from cagekit_learn.networks import ModelConfig, NeuralCages  # noqa: E402
 from cagekit_learn.threads import one_thread  # noqa: E402
 from cagekit_learn.train import TrainConfig, load_model, train  # noqa: E402
 
-TINY_MODEL = {"bottleneck": 16, "decoder_widths": [32, 32]}
 POINTS = 128  # of the 162 vertices of icosphere(2)
 SEED = 1
 # the template's own frame: an ellipsoid away from the origin, not of unit size
@@ -85,10 +83,6 @@ def shapes(tmp_path_factory):
     return {"data": data, "template": template, "cage": cage, "coarse": other}
 
 
-def _invoke(*args):
-    return CliRunner().invoke(main, [str(a) for a in args])
-
-
 def _train_args(shapes, run, *extra):
     return ["train", shapes["data"], "-o", run, "--fixed-source", shapes["template"],
             "--align", "l2", "--points", POINTS, "--bottleneck", 16, "--batch-size", 2,
@@ -100,8 +94,8 @@ def run_dir(shapes, tmp_path_factory):
     """Three steps with the template as fixed source and its cage (through the CLI)."""
     run = tmp_path_factory.mktemp("fixed") / "run"
     with one_thread():
-        result = _invoke(*_train_args(shapes, run, "--source-cage", shapes["cage"],
-                                      "--max-steps", 3))
+        result = invoke(*_train_args(shapes, run, "--source-cage", shapes["cage"],
+                                     "--max-steps", 3))
     assert result.exit_code == 0, result.output
     return run
 
@@ -111,10 +105,6 @@ def _config(tmp_path, shapes, **overrides):
               "points": POINTS, "batch_size": 2, "seed": SEED, "model": TINY_MODEL,
               "align": "l2", "fixed_source": str(shapes["template"]), "checkpoint_every": 2}
     return TrainConfig(**{**values, **overrides})
-
-
-def _states_equal(a, b):
-    return a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
 
 
 # ------------------------------------------------------------------------------ pairs
@@ -225,8 +215,8 @@ def test_chamfer_fixed_source_is_surface_sampled_and_needs_no_vertex_order(tmp_p
 
 
 def test_l2_template_with_another_vertex_count_exits_2_naming_it(tmp_path, shapes):
-    result = _invoke(*_train_args(shapes, tmp_path / "run", "--max-steps", 1)[:5],
-                     shapes["coarse"], "--align", "l2", "--points", POINTS)
+    result = invoke(*_train_args(shapes, tmp_path / "run", "--max-steps", 1)[:5],
+                    shapes["coarse"], "--align", "l2", "--points", POINTS)
     assert result.exit_code == 2
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and str(shapes["coarse"]) in lines[0]
@@ -276,7 +266,7 @@ def test_resume_with_a_fixed_source_is_exact_and_needs_no_template_file(tmp_path
     b = train(part, resume=True, progress=False)
     assert a.step == b.step == 7
     pa, pb = load_checkpoint(whole.run_dir), load_checkpoint(part.run_dir)
-    assert _states_equal(pa["model"], pb["model"])
+    assert states_equal(pa["model"], pb["model"])
     assert pb["config"]["fixed_source"] == str(template)
     assert pa["model_config"]["fixed_source_points"] == pb["model_config"]["fixed_source_points"]
     for sa, sb in zip(pa["optimizer"]["state"].values(), pb["optimizer"]["state"].values()):
@@ -288,9 +278,9 @@ def test_resume_with_a_fixed_source_is_exact_and_needs_no_template_file(tmp_path
 
 def test_a_short_fixed_source_run_lowers_the_l2_loss(tmp_path, shapes):
     run = tmp_path / "run"
-    result = _invoke(*_train_args(shapes, run, "--source-cage", shapes["cage"],
-                                  "--max-steps", 150, "--no-augment", "--no-box-align",
-                                  "--lr", "3e-3", "--checkpoint-every", 1000))
+    result = invoke(*_train_args(shapes, run, "--source-cage", shapes["cage"],
+                                 "--max-steps", 150, "--no-augment", "--no-box-align",
+                                 "--lr", "3e-3", "--checkpoint-every", 1000))
     assert result.exit_code == 0, result.output
     with open(run / "log.csv", newline="") as handle:
         align = [float(r["align"]) for r in csv.DictReader(handle)]

@@ -3,12 +3,13 @@
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 torch = pytest.importorskip("torch")
+
+from builders import REPOSITORY as ROOT  # noqa: E402
 
 from cagekit import bind, io  # noqa: E402
 from cagekit.cli import main  # noqa: E402
@@ -18,8 +19,6 @@ from cagekit.metrics import evaluate  # noqa: E402
 from cagekit.sampling import surface_samples  # noqa: E402
 from cagekit_learn.inference import deform_with_model, predict  # noqa: E402
 from cagekit_learn.train import load_model  # noqa: E402
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def _cli(args, capsys):

@@ -9,7 +9,7 @@ identities.
 import numpy as np
 import pytest
 import torch
-from builders import icosphere, nn_margin
+from builders import SEEDS, deformed, icosphere, nn_margin
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -18,7 +18,6 @@ from cagekit.errors import InputError
 from cagekit.geometry import vertex_neighborhoods
 from cagekit_learn import losses as tl
 
-SEEDS = st.integers(min_value=0, max_value=2**32 - 1)
 VALUE_RTOL = 1e-12
 GRAD_RTOL = 1e-10
 
@@ -58,11 +57,6 @@ def rest_shapes(B=3, subdivisions=2):
     X0 = np.stack([V * rng.uniform(0.6, 1.5, 3) + 0.02 * rng.standard_normal(V.shape)
                    for _ in range(B)])
     return X0, F
-
-
-def deformed(X0, seed=5, amount=0.05):
-    rng = np.random.default_rng(seed)
-    return X0 * [1.1, 0.95, 1.0] + amount * rng.standard_normal(X0.shape)
 
 
 # ------------------------------------------------------------------------------ Chamfer

@@ -15,14 +15,15 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
+from builders import REPOSITORY as ROOT  # noqa: E402
+from builders import TINY_MODEL, states_equal  # noqa: E402
+
 from cagekit.errors import InputError  # noqa: E402
 from cagekit_learn import losses  # noqa: E402
 from cagekit_learn.checkpoint import load_checkpoint, save_checkpoint  # noqa: E402
 from cagekit_learn.data import ShapeCollection  # noqa: E402
 from cagekit_learn.train import TrainConfig, load_model, train, training_loss  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
-TINY_MODEL = {"bottleneck": 16, "decoder_widths": [32, 32]}
 # a small, quick run: 6 synthetic vases, 128 points each
 TINY_ARGS = ["synthetic:vases:6", "--points", "128", "--bottleneck", "16", "--batch-size",
              "2", "--seed", "3"]
@@ -43,10 +44,6 @@ def _env():
     env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONHASHSEED="0")
     env.pop("CAGEKIT_DEBUG", None)
     return env
-
-
-def _states_equal(a, b):
-    return a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
 
 
 def test_a_tiny_training_run_lowers_the_loss(tmp_path, vases):
@@ -173,7 +170,7 @@ def test_resume_after_a_kill_gives_the_weights_of_an_uninterrupted_run(tmp_path)
                    capture_output=True)
     a, b = load_checkpoint(killed), load_checkpoint(whole)
     assert a["step"] == b["step"] == 150
-    assert _states_equal(a["model"], b["model"])
+    assert states_equal(a["model"], b["model"])
     with open(killed / "log.csv", newline="") as handle:
         assert [int(r["step"]) for r in csv.DictReader(handle)] == list(range(1, 151))
 
@@ -197,9 +194,9 @@ def test_two_torchrun_processes_keep_identical_weights(tmp_path):
     assert done.returncode == 0, done.stderr[-2000:]
     rank0 = torch.load(run_dir / "rank0.pt", weights_only=True)
     rank1 = torch.load(run_dir / "rank1.pt", weights_only=True)
-    assert _states_equal(rank0, rank1)
+    assert states_equal(rank0, rank1)
     payload = load_checkpoint(run_dir)
-    assert payload["step"] == 4 and _states_equal(payload["model"], rank0)
+    assert payload["step"] == 4 and states_equal(payload["model"], rank0)
     # training happened: the zero-initialised last layers moved
     assert rank0["nd_decoder.layers.4.weight"].abs().sum() > 0
     with open(run_dir / "log.csv", newline="") as handle:

@@ -5,7 +5,7 @@ import warnings
 import numpy as np
 import pytest
 import scipy.sparse
-from builders import icosphere, nn_margin
+from builders import SEEDS, deformed, icosphere, nn_margin
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from scipy.spatial import cKDTree
@@ -32,7 +32,6 @@ from cagekit.metrics import chamfer_distance
 
 H = 1e-6  # finite-difference step
 RTOL = 1e-6  # allowed error, relative to max |grad|
-SEEDS = st.integers(min_value=0, max_value=2**32 - 1)
 
 
 def numeric_grad(f, X, h=H):
@@ -98,11 +97,6 @@ def shape_refs():
 
 SHAPE_REFS = shape_refs()
 SHAPE_IDS = [name for name, _, _ in SHAPE_REFS]
-
-
-def deformed(X0, seed=5, amount=0.05):
-    rng = np.random.default_rng(seed)
-    return X0 * [1.1, 0.95, 1.0] + amount * rng.standard_normal(X0.shape)
 
 
 # ------------------------------------------------------------------------------ Chamfer

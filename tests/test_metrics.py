@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 import trimesh
+from builders import icosphere
 from scipy.spatial.transform import Rotation
 
 from cagekit.errors import InputError
@@ -10,11 +11,6 @@ from cagekit.frame import normalize
 from cagekit.geometry import cotangent_laplacian
 from cagekit.metrics import chamfer, chamfer_distance, dcotlap, evaluate
 from cagekit.sampling import surface_samples
-
-
-def icosphere(subdivisions=2):
-    m = trimesh.creation.icosphere(subdivisions=subdivisions)
-    return np.asarray(m.vertices, dtype=float), np.asarray(m.faces, dtype=np.int64)
 
 
 def ellipsoid(axes=(1.0, 2.0, 0.5), offset=(0.0, 0.0, 0.0)):

@@ -15,6 +15,7 @@ D is the cage's bounding-box diagonal. Bounds tested:
 import igl
 import numpy as np
 import pytest
+from builders import diag, unit_normals
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -62,15 +63,6 @@ CAGES = {
     "flat-box": box_cage(2, half_extent=(3.0, 1.0, 0.05)),
     "sliver": sliver_cage(),
 }
-
-
-def diag(v):
-    return float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
-
-
-def unit_normals(v, f):
-    n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
-    return n / np.linalg.norm(n, axis=1, keepdims=True)
 
 
 def lin_err(w, v, p):

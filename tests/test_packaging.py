@@ -3,9 +3,8 @@
 import re
 import subprocess
 import sys
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from builders import REPOSITORY as ROOT
 
 
 def test_import_cagekit_does_not_import_torch():

@@ -4,13 +4,11 @@ import os
 
 import numpy as np
 import pytest
+from builders import EXAMPLE, ROOT
 from matplotlib.image import imread
 
 from cagekit.cage import unique_edges
 from cagekit.render import MAX_FACES, render_meshes
-
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-EXAMPLE = os.path.join(ROOT, "data", "example")
 
 
 def read_obj(path):

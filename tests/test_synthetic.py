@@ -6,17 +6,15 @@ import os
 import numpy as np
 import pytest
 import trimesh
-from click.testing import CliRunner
+from builders import ROOT, invoke
 from scipy.spatial import cKDTree
 
 import cagekit
-from cagekit.cli import main
 from cagekit.cli.synth import FAMILIES as SYNTH_FAMILIES
 from cagekit.datasets import synthetic
 from cagekit.datasets.synthetic import FAMILIES, chair, family, table, vase
 from cagekit.io import load_mesh
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SEEDS = range(6)
 MAKERS = [chair, table, vase]
 
@@ -233,10 +231,6 @@ def test_demo_pair(tmp_path):
 
 
 # ------------------------------------------------------------------------------ CLI
-
-
-def invoke(*args):
-    return CliRunner().invoke(main, [str(a) for a in args])
 
 
 def test_cli_writes_files(tmp_path):

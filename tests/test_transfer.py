@@ -1,4 +1,4 @@
-"""Deformation transfer to novel characters (apps.deformation_transfer, apps.humanoid_data)."""
+"""Deformation transfer to novel characters (apps.deformation_transfer)."""
 
 import json
 
@@ -7,14 +7,13 @@ import pytest
 
 pytest.importorskip("torch")
 
+from builders import random_rotation, small_humanoid_data  # noqa: E402
 from click.testing import CliRunner  # noqa: E402
 
 from apps import deformation_transfer as dt  # noqa: E402
-from apps import humanoid_data  # noqa: E402
 from cagekit import io  # noqa: E402
 from cagekit.alignment import Similarity  # noqa: E402
 from cagekit.coords import bind  # noqa: E402
-from cagekit.datasets import humanoid  # noqa: E402
 from cagekit.errors import InputError  # noqa: E402
 from cagekit.landmarks import load_landmarks, save_landmarks  # noqa: E402
 
@@ -23,9 +22,7 @@ from cagekit.landmarks import load_landmarks, save_landmarks  # noqa: E402
 def data(tmp_path_factory):
     """A small data set: template, cage, one novel body, two poses with ground truth."""
     out = tmp_path_factory.mktemp("humanoid")
-    summary = humanoid_data.write(out, poses=2, train_poses=2, landmarks=40, cage_faces=100,
-                                  resolution=0.5, bodies=("stocky",))
-    return out, summary
+    return out, small_humanoid_data(out)
 
 
 def _run(args):
@@ -37,31 +34,6 @@ def _run(args):
 def _inputs(out):
     return [out / "template.obj", out / "template_cage.obj", out / "template_landmarks.json",
             out / "characters" / "stocky.obj", out / "characters" / "stocky_landmarks.json"]
-
-
-def test_data_set_is_consistent(data):
-    out, summary = data
-    Vt, Ft = io.load_mesh(out / "template.obj")
-    Vc, Fc = io.load_mesh(out / "characters" / "stocky.obj")
-    V0, F0 = io.load_mesh(out / "poses" / "pose_000.obj")
-    G0, _ = io.load_mesh(out / "truth" / "stocky" / "pose_000.obj")
-    assert np.array_equal(Ft, Fc) and np.array_equal(Ft, F0)
-    assert len(Vt) == len(Vc) == len(V0) == len(G0) == summary["template_vertices"]
-    assert not np.allclose(V0, Vt) and not np.allclose(G0, Vc)
-    # the ground truth is the character posed with the test pose's rotations
-    pose = humanoid.random_pose(humanoid_data.TEST_POSE_SEED)
-    np.testing.assert_allclose(G0, humanoid.rig("stocky", resolution=0.5).pose(pose),
-                               atol=1e-9)
-    marks = load_landmarks(out / "template_landmarks.json")
-    assert len(marks) == 40
-    rig = humanoid.rig("template", resolution=0.5)
-    for label, xyz in marks.items():
-        np.testing.assert_allclose(xyz, rig.vertices[rig.landmarks[label]], atol=1e-12)
-    assert len(list((out / "train").iterdir())) == 2
-    cage_v, cage_f = io.load_mesh(out / "template_cage.obj")
-    from cagekit.cage import cage_encloses
-
-    assert cage_encloses(Vt, cage_v, cage_f)
 
 
 def test_end_to_end_transfer_beats_the_rest_pose(data, tmp_path):
@@ -115,10 +87,7 @@ def test_cage_offsets_are_scaled_by_the_alignment(data):
 
 def test_similar_copy_of_the_template_moves_like_the_template(data):
     (Vt, Ft), (cage_v, cage_f), marks_t, _, _ = _character(data[0])
-    q, r = np.linalg.qr(np.random.default_rng(3).normal(size=(3, 3)))
-    R = q * np.sign(np.diag(r))
-    R = R if np.linalg.det(R) > 0 else -R
-    A = Similarity(1.6, R, np.array([2.0, -1.0, 0.5]))
+    A = Similarity(1.6, random_rotation(3), np.array([2.0, -1.0, 0.5]))
     Vc = A.apply(Vt)
     marks_c = {k: A.apply(v[None])[0] for k, v in marks_t.items()}
     char = dt.fit_character(Vt, cage_v, cage_f, marks_t, Vc, Ft, marks_c, align="similarity")
@@ -206,16 +175,6 @@ def test_model_without_fixed_source_is_refused(data):
     model = NeuralCages(ModelConfig(bottleneck=8, decoder_widths=[8]))
     with pytest.raises(InputError, match="fixed source"):
         dt.template_cage_learned(model, Vt, cage_v, (Vt, Ft))
-
-
-def test_landmark_names_spread_and_bounds():
-    names = humanoid_data.landmark_names(80)
-    assert len(set(names)) == 80 and set(names) <= set(humanoid.LANDMARK_NAMES)
-    every = humanoid.LANDMARK_NAMES
-    assert names[0] == every[0] and names[-1] == every[-1]  # the whole list is spanned
-    assert humanoid_data.landmark_names(len(every)) == list(every)
-    with pytest.raises(InputError):
-        humanoid_data.landmark_names(3)
 
 
 def test_grid_in_a_missing_folder_is_refused_before_any_work(data, tmp_path):

@@ -43,34 +43,14 @@ def apply(ctx, mesh, cage, deformed_cage, out, coords, as_json):
     Example:
       cagekit apply shape.obj cage.obj cage_deformed.obj -o deformed.obj
     """
-    import numpy as np
-
-    from cagekit import io
-    from cagekit.cage import check_cage
     from cagekit.coords.binding import warn_outside
-    from cagekit.geometry import face_areas
 
     start_command(ctx)
     check_output(out, (mesh, cage, deformed_cage))
     seconds = {}
-
     t0 = time.perf_counter()
-    V, F = io.load_shape(mesh)
+    V, F, CV, faces, DV = _load(mesh, cage, deformed_cage, out)
     write = shape_writer(out, has_faces=len(F) > 0)
-    CV, CF = io.load_mesh(cage)
-    try:
-        face_areas(CV, CF)  # areas that overflow would be reported as "zero area" below
-    except InputError as exc:
-        raise InputError(exc.problem, cage) from None
-    faces = check_cage(CV, CF, name=cage)  # closed, 2-manifold, oriented (flipped outward)
-    DV, DF = io.load_shape(deformed_cage)
-    if len(DV) != len(CV):
-        raise InputError(f"{deformed_cage} has {len(DV)} vertices but {cage} has "
-                         f"{len(CV)}: the deformed cage must have the cage's vertices "
-                         "(same count and order)")
-    if len(DF) and (DF.shape != CF.shape or not np.array_equal(DF, CF)):
-        raise InputError(f"its faces differ from those of {cage}; the deformed cage must "
-                         "be the same mesh with moved vertices", deformed_cage)
     seconds["load"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -88,7 +68,37 @@ def apply(ctx, mesh, cage, deformed_cage, out, coords, as_json):
     t0 = time.perf_counter()
     write(out, out_v, F)
     seconds["write"] = time.perf_counter() - t0
+    _report(out, V, F, CV, coords, outside, seconds, as_json)
 
+
+def _load(mesh, cage, deformed_cage, out):
+    """The shape, the checked cage (vertices, oriented faces) and the deformed cage."""
+    import numpy as np
+
+    from cagekit import io
+    from cagekit.cage import check_cage
+    from cagekit.geometry import face_areas
+
+    V, F = io.load_shape(mesh)
+    shape_writer(out, has_faces=len(F) > 0)  # refuse a wrong format before reading on
+    CV, CF = io.load_mesh(cage)
+    try:
+        face_areas(CV, CF)  # areas that overflow would be reported as "zero area" below
+    except InputError as exc:
+        raise InputError(exc.problem, cage) from None
+    faces = check_cage(CV, CF, name=cage)  # closed, 2-manifold, oriented (flipped outward)
+    DV, DF = io.load_shape(deformed_cage)
+    if len(DV) != len(CV):
+        raise InputError(f"{deformed_cage} has {len(DV)} vertices but {cage} has "
+                         f"{len(CV)}: the deformed cage must have the cage's vertices "
+                         "(same count and order)")
+    if len(DF) and (DF.shape != CF.shape or not np.array_equal(DF, CF)):
+        raise InputError(f"its faces differ from those of {cage}; the deformed cage must "
+                         "be the same mesh with moved vertices", deformed_cage)
+    return V, F, CV, faces, DV
+
+
+def _report(out, V, F, CV, coords, outside, seconds, as_json):
     if as_json:
         emit_json({
             "output": out,
