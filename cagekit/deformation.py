@@ -439,8 +439,8 @@ def deform(source, target, cage=None, *, method: str = "cage", symmetry: str | N
         source outside is used with an :class:`~cagekit.errors.OutsideCageWarning` (those
         points are extrapolated). When None,
         :func:`cagekit.fit_cage` builds one with ``faces`` faces, checked against 5,000
-        surface samples instead of fit-cage's 20,000 (a third faster; the coordinates
-        are defined outside the cage too, so a sample a hair outside does no harm).
+        surface samples instead of fit-cage's 20,000 (faster; the coordinates are
+        defined outside the cage too, so a sample a hair outside does no harm).
     method : {"cage", "scale", "nricp"}, default "cage"
         ``cage``: the energy above, minimised over the cage. ``scale``: the source's
         bounding box mapped onto the target's (the paper's simplest baseline). ``nricp``:

@@ -232,8 +232,8 @@ def _signed_distance(points, cv, cf):
     """Signed distance to a closed, oriented cage (negative inside), closest faces and points.
 
     libigl's pseudonormal sign is exact for a closed, 2-manifold, self-intersection-free
-    cage and about 4x faster than the winding-number sign; the final checks use the exact
-    winding number regardless.
+    cage and faster than the winding-number sign; the final checks use the exact winding
+    number regardless.
     """
     import igl
 

@@ -1,57 +1,24 @@
 """Training data of the learned mode: normalised point samples of shape collections.
 
-A :class:`ShapeCollection` holds ``P`` surface samples of each of ``N`` shapes, every
-shape normalised on its own into the paper's frame (bounding-box centre at the origin,
-largest half-extent 1; :func:`cagekit.normalize`). It comes from a folder of meshes
-(:meth:`ShapeCollection.from_folder`, cached incrementally), from the procedural families
-(:meth:`ShapeCollection.synthetic`) or from arrays. Training draws (source, target) pairs
-each epoch (:func:`epoch_pairs`), splits them between ranks (:func:`shard`) and turns them
-into tensors with the paper's anisotropic-scaling augmentation (:func:`make_batch`).
-
-With a **fixed source** (the paper's human setting: one template character in rest pose
-is the source of every pair, its poses are the targets) the template is read once
-(:class:`FixedSource`), each epoch pairs it with every shape of the collection once
-(:func:`fixed_source_pairs`, whose source column is :data:`FIXED_SOURCE`), and
-:func:`make_batch` puts the template's samples in the source slot, never augmented.
-
-Decisions
----------
-- **Determinism.** Every random draw is seeded from explicit integers through
-  ``numpy.random.SeedSequence`` with a leading tag per use, so no two uses share a stream
-  (NumPy treats trailing zero words of a seed as absent: ``[1, 2]`` and ``[1, 2, 0]`` give
-  the same stream, which the tags rule out). A shape's samples depend only on
-  ``(seed, name)`` (its name goes through ``zlib.crc32``), so adding or removing a file
-  changes no other shape's samples.
-- **Cache.** :meth:`ShapeCollection.from_folder` keeps ``samples.npz`` and
-  ``manifest.json`` in ``<root>/.cagekit-cache`` (a hidden folder, which
-  :func:`find_meshes` skips). A file is identified by its relative path, size and
-  ``mtime_ns``; an unchanged file is never read again. Both files are written atomically
-  (the samples first, then the manifest) and carry the same random token; a cache whose
-  files disagree, or which cannot be read, is ignored and rebuilt.
-- **Point clouds.** A file with a mesh extension but no faces (a PLY point cloud) is
-  normalised the same way; ``P`` of its points are drawn, without replacement when it has
-  at least ``P`` points and with replacement otherwise.
-- **Augmentation** is seeded per batch row from ``(seed, epoch, step, row, source index,
-  target index)``: a resumed run reproduces a batch exactly, and ranks of a distributed
-  run, which share ``(epoch, step)``, still draw different scales. A fixed source is
-  never augmented (its cage, when given, is fixed to it); only its targets are, seeded
-  from ``(seed, epoch, step, row, target index)`` under a tag of their own.
-- **Correspondence.** :meth:`ShapeCollection.corresponding` and a fixed source read with
-  ``corresponding=True`` take the same seeded vertex rows (:func:`corresponding_rows`,
-  a function of ``(vertex count, points, seed)``), so point ``i`` of the template
-  corresponds to point ``i`` of every shape.
-- **Imports.** Only NumPy and cagekit at import time; torch is imported by
-  :func:`make_batch` alone.
+A :class:`ShapeCollection` holds ``P`` surface samples of each of ``N`` shapes, each
+normalised on its own into the unit frame (:func:`cagekit.normalize`). It comes from a
+folder of meshes (:meth:`ShapeCollection.from_folder`, cached incrementally by a
+:class:`SampleCache` keyed on each file's path, size and ``mtime_ns``), from the procedural
+families (:meth:`ShapeCollection.synthetic`), from shapes in correspondence
+(:meth:`ShapeCollection.corresponding`) or from arrays. Each epoch draws (source, target)
+pairs (:func:`epoch_pairs`, or :func:`fixed_source_pairs` with a fixed source,
+:class:`FixedSource`), splits them between ranks (:func:`shard`) and turns them into
+tensors with the paper's anisotropic-scaling augmentation (:func:`make_batch`; a fixed
+source is never augmented). Every random draw is seeded through
+``numpy.random.SeedSequence`` with a tag per use, and a shape's samples depend only on
+``(seed, name)``, so adding a file changes no other shape's samples. torch is imported by
+:func:`make_batch` alone. See docs/architecture.md.
 
 Examples
 --------
 >>> shapes = ShapeCollection.synthetic("vases", n=4, points=256, resolution=0.5)
 >>> shapes.points.shape, shapes.names[1]
 ((4, 256, 3), 'vases/0001')
->>> pairs = shard(epoch_pairs(len(shapes), epoch=0), rank=0, world_size=2)
->>> batch = make_batch(shapes, pairs, epoch=0, step=0)  # doctest: +SKIP
->>> batch["source"].shape  # doctest: +SKIP
-torch.Size([2, 256, 3])
 """
 
 from __future__ import annotations
@@ -104,6 +71,8 @@ _SAMPLES_FILE = "samples.npz"
 _MANIFEST_FILE = "manifest.json"
 
 # Leading words of the seeds, one per use of randomness (see "Determinism" above).
+# a leading tag per use of randomness: no two uses share a stream (NumPy treats trailing zero
+# words of a seed as absent, so [1, 2] and [1, 2, 0] would give the same stream)
 _TAG_SAMPLES = 0x5A3D1E01
 _TAG_PAIRS = 0x5A3D1E02
 _TAG_AUGMENT = 0x5A3D1E03

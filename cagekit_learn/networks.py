@@ -1,39 +1,17 @@
 """The networks of "Neural Cages" (section 3.2): a shared PointNet encoder, N_c and N_d.
 
-Given a source and a target point cloud (each normalised on its own, ``(B, P, 3)``):
-
-- the **encoder** (shared by everything) maps a cloud to a code of ``bottleneck`` numbers:
-  1-D convolutions 3 -> 64 -> 128 -> ``bottleneck`` with ReLU between them, then a max-pool
-  over the points (no batch normalisation, so a batch of one behaves like any other);
-- **N_c** predicts the source cage: the template cage (the 42-vertex icosphere of
-  :func:`cagekit.template_cage`, scaled by ``template_radius``) plus offsets decoded, per
-  template vertex, from the template vertex's position and the source code (an
-  AtlasNet-style decoder: a shared MLP over the concatenation ``[vertex, code]``);
-- **N_d** predicts the deformed cage: the source cage plus offsets decoded per source-cage
-  vertex from ``[cage vertex, source code, target code]``.
-
-Decisions (ours, where the paper is silent)
--------------------------------------------
-- The decoders' last layer starts at zero, so an untrained model predicts the template
-  as the source cage and leaves it where it is: training starts from a valid cage.
-- ``box_align=True`` (default) adds a fixed, non-learned step before N_d's offsets: the
-  source cage is stretched per axis by the ratio of the target's to the source's
-  bounding-box half-extents (measured on the input clouds), the scaling baseline of the
-  benchmarks. N_d then learns only what the boxes do not explain. ``box_align=False`` is
-  the paper's plain offsets.
-- ``template_radius`` defaults to 1.5: a normalised shape fits ``[-1, 1]^3``; a radius
-  of 1.5 encloses most shapes (a chair's corners lie at about 1.2) without wasting the
-  cage's resolution on empty space. L_MVC pushes the cage out where it does not enclose.
-- N_c variants (the paper's ablation): ``learned`` (above), ``identity`` (the template
-  itself, nothing learned), ``source-invariant`` (the template plus one learned offset
-  per vertex, the same for every source). ``fixed_cage`` replaces N_c by a given cage,
-  for a collection that shares one source (a template character).
-- A model trained with a **fixed source** (``cagekit train --fixed-source``) keeps the
-  template's normalised samples in its config (``fixed_source_points``, with the vertex
-  ``fixed_source_rows`` under the L2 alignment, the template's vertex count and its
-  normalisation ``fixed_source_center``/``fixed_source_scale``); the model exposes them as
-  the non-persistent buffer :attr:`NeuralCages.fixed_source` (the state dict is unchanged),
-  and inference feeds them as the source (:mod:`cagekit_learn.inference`).
+The **encoder** maps a normalised cloud ``(B, P, 3)`` to a code (1-D convolutions
+3-64-128-``bottleneck``, ReLU, max-pool, no batch normalisation). **N_c** predicts the source
+cage: the template cage (:func:`cagekit.template_cage` x ``template_radius``) plus offsets
+decoded per vertex from ``[vertex, source code]`` (AtlasNet-style), or the paper's ablations
+(``identity``, ``source-invariant``) or a fixed cage. **N_d** predicts the deformed cage:
+the source cage plus offsets from ``[cage vertex, source code, target code]``. Ours where
+the paper is silent: the decoders' last layers start at zero (an untrained model returns
+the template, unmoved); ``box_align`` (default) first stretches the source cage onto the
+target's bounding box (:func:`cagekit_learn.alignment.box_scale`), so N_d learns only what
+the boxes do not explain; a model trained with a fixed source keeps the template's samples
+in its config and exposes them as :attr:`NeuralCages.fixed_source`. See
+docs/architecture.md.
 """
 
 from __future__ import annotations

@@ -14,9 +14,7 @@ def one_thread():
     """Run torch on one thread for the duration of the block, then restore the count.
 
     For tiny tensors (80 landmarks in a 100-vertex cage, a test's small model) one thread
-    is the fastest and is immune to a busy machine: on a 2-core machine with another
-    process keeping both cores busy, an evaluation of the MVC consistency energy took 15
-    ms on one thread and 0.3-1.4 s on two.
+    is the fastest and is immune to a busy machine (docs/benchmarks.md, "Design notes").
 
     Examples
     --------

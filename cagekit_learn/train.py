@@ -1,48 +1,19 @@
 """Training N_c and N_d on a collection of shapes (section 3.3 of "Neural Cages").
 
-One step: a batch of random source-target pairs (:mod:`cagekit_learn.data`), the model
-predicts a source cage and its deformation (:mod:`cagekit_learn.networks`), the source
-points are bound to the predicted cage with the differentiable MVC
-(:mod:`cagekit_learn.coords`) and moved with the deformed cage, and the loss is::
-
-    L = L_align + alpha_MVC * L_MVC + alpha_shape * (L_p2f + L_normal) [+ alpha_symm * L_symm]
-
-with ``L_align`` the Chamfer distance to the target (or, with ``align="l2"`` and a
-collection sampled in correspondence, the mean squared distance between corresponding
-points), ``alpha_MVC = 1``, ``alpha_shape = 0.1`` (the paper's), the shape terms over
-the k = 16 nearest neighbours of each source point, and the symmetry term (off unless an
-axis is given) the Chamfer distance between the deformed points and their mirror image
-plus the asymmetry of the source and deformed cages (each vertex against its mirror
-partner in the symmetric template).
-
-Decisions
----------
-- **Optimiser**: Adam at ``lr`` (default 1e-3, ours: the quickest fall on a CPU budget
-  among 1e-4, 3e-4 and 1e-3 on synthetic chairs), N_c's own parameters at ``0.1 x lr``
-  (the paper's ratio).
-- **Exact resume**: everything random is a function of ``(seed, epoch, step)`` (pairs,
-  augmentation); checkpoints hold the model, the optimiser, the step counters and the
-  torch RNG state, so a run killed and resumed from its last checkpoint computes the same
-  weights as one never stopped (tested by killing one).
-- **Bad steps**: a step whose loss or gradient is not finite is skipped (no optimiser
-  update) and counted (``skipped`` in the log and the checkpoint). Under
-  DistributedDataParallel the decision is shared by all ranks, so they stay identical.
-- **Scaling out**: under ``torchrun`` (``WORLD_SIZE > 1``) the model is wrapped in
-  DistributedDataParallel (gloo on the CPU, nccl on CUDA); each rank takes its own shard
-  of every epoch's pairs (:func:`cagekit_learn.data.shard`), so an epoch has
-  ``pairs / (batch x ranks)`` steps; rank 0 writes the log and the checkpoints.
-- **Fixed source** (``fixed_source``, the paper's human setting: one template character
-  in rest pose is the source of every pair, the collection holds its poses): each epoch
-  pairs the template with every shape once (:func:`cagekit_learn.data.fixed_source_pairs`,
-  sharded like any epoch). The template is read once, normalised on its own and sampled
-  like the collection (under ``align="l2"`` the same vertex rows, so it must share the
-  collection's vertex count and order), and never augmented, since a fixed cage is fitted
-  to it. Its samples, rows, vertex count and normalisation go into the model config
-  (``fixed_source_*`` of :class:`cagekit_learn.networks.ModelConfig`), so a checkpoint
-  carries the source: inference and resume use the stored samples and never read the
-  template file again. A fixed cage (``ModelConfig.fixed_cage_v``) is always in the
-  normalised source frame; :func:`load_source_cage` maps a cage file drawn around the
-  template in the template's own frame into it.
+One step (:meth:`Trainer.step`): a batch of source-target pairs (:mod:`cagekit_learn.data`),
+the model predicts a source cage and its deformation (:mod:`cagekit_learn.networks`), the
+source points are bound to the predicted cage with the differentiable MVC and moved, and
+the loss is ``L_align + ALPHA_MVC * L_MVC + alpha_shape * (L_p2f + L_normal) [+ L_symm]``
+(the paper's weights, :mod:`cagekit.losses`; ``L_align`` Chamfer, or the L2 distance of
+corresponding points with ``align="l2"``). Adam at ``lr``, N_c at :data:`NC_LR_FACTOR` of it.
+Everything random is a function of ``(seed, epoch, step)`` and checkpoints hold the model,
+the optimiser, the counters and the RNG state, so a resumed run computes the weights of
+one never stopped. A step whose loss or gradient is not finite is skipped (on every rank).
+Under torchrun (``torchrun -m cagekit.cli train``) the model is wrapped in
+DistributedDataParallel and each rank takes its shard of every epoch's pairs; rank 0 writes
+the log and the checkpoints. With a fixed source (one template character, its poses as the
+targets) the template's samples and normalisation go into the model config, so a checkpoint
+carries its source. See docs/architecture.md.
 """
 
 from __future__ import annotations
@@ -351,9 +322,8 @@ def _fixed_source_cache(net, source, knn):
     With both the source and its cage fixed (``--fixed-source`` with ``--source-cage``;
     the source is never augmented) the source's coordinates and its shape reference are
     the same at every step, and nothing learned enters them: they are computed on the
-    first batch and reused (the same numbers, so a resumed run stays exact). On the
-    humanoid benchmark (1,024 points, 100-vertex cage, batch 8, one thread) a step went
-    from 2.8 s to 0.12 s. Returns None otherwise.
+    first batch and reused (the same numbers, so a resumed run stays exact; the gain is in
+    docs/benchmarks.md, "Design notes"). Returns None otherwise.
     """
     fixed = getattr(net, "fixed_source", None)
     if fixed is None or net.config.fixed_cage_v is None:
