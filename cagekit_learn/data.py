@@ -70,8 +70,7 @@ CACHE_FORMAT = 1
 _SAMPLES_FILE = "samples.npz"
 _MANIFEST_FILE = "manifest.json"
 
-# Leading words of the seeds, one per use of randomness (see "Determinism" above).
-# a leading tag per use of randomness: no two uses share a stream (NumPy treats trailing zero
+# A leading tag per use of randomness: no two uses share a stream (NumPy treats trailing zero
 # words of a seed as absent, so [1, 2] and [1, 2, 0] would give the same stream)
 _TAG_SAMPLES = 0x5A3D1E01
 _TAG_PAIRS = 0x5A3D1E02
