@@ -26,6 +26,20 @@ def test_the_command_line_starts_without_the_heavy_libraries():
     assert out.stdout.strip() == "[]"
 
 
+def test_every_commands_help_imports_none_of_the_heavy_libraries():
+    """``cagekit COMMAND --help`` stays fast: the commands import the library when they run."""
+    code = ("import sys\nfrom cagekit.cli import main\n"
+            "for command in ('apply', 'eval', 'render', 'fit-cage', 'synth', 'deform', "
+            "'train'):\n"
+            "    main([command, '--help'], standalone_mode=False)\n"
+            "heavy = ('numba', 'igl', 'pymeshlab', 'trimesh', 'scipy', 'torch', 'matplotlib', "
+            "'tqdm')\n"
+            "print(sorted(m for m in heavy if m in sys.modules))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.strip().splitlines()[-1] == "[]"
+
+
 def test_the_command_lines_choices_are_the_librarys():
     import cagekit
     from cagekit.cli.common import COORDINATE_METHODS, FIT_METHODS, TEMPLATE_FACES
