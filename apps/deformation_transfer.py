@@ -125,7 +125,7 @@ def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
     from cagekit_learn.consistency import fit_cage_by_consistency
 
     match = match_landmarks(template_landmarks, character_landmarks,
-                               source_name=template_name, target_name=character_name)
+                            source_name=template_name, target_name=character_name)
     cage_v = as_vertices(cage_v, "cage_v")
     cage_f = check_cage(cage_v, cage_f)
     character_v = as_vertices(character_v, "character_v")

@@ -119,7 +119,7 @@ def write(out_dir, *, poses: int = 20, train_poses: int = 1000, seed: int = 0,
     for body, rig in rigs.items():
         io.save_mesh(out / "characters" / f"{body}.obj", rig.vertices, F)
         save_landmarks(out / "characters" / f"{body}_landmarks.json",
-                          landmarks_of(rig, names))
+                       landmarks_of(rig, names))
     for i in range(poses):
         pose = humanoid.random_pose(TEST_POSE_SEED + i)
         io.save_mesh(out / "poses" / f"pose_{i:03d}.obj", template.pose(pose), F)

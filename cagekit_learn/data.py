@@ -33,7 +33,7 @@ import zlib
 import numpy as np
 
 from cagekit.datasets import synthetic as _synthetic
-from cagekit.errors import InputError
+from cagekit.errors import CagekitWarning, InputError
 from cagekit.files import atomic_output
 from cagekit.frame import normalize
 from cagekit.geometry import as_count
@@ -375,7 +375,7 @@ class ShapeCollection:
 
         Warns
         -----
-        UserWarning
+        cagekit.errors.CagekitWarning
             For each file skipped (naming the file and the problem; files a cache
             remembers as broken are warned about again without being read), and when the
             default cache cannot be written.
@@ -565,7 +565,7 @@ def _scan(base, paths, old):
             st = path.stat()
         except OSError as exc:
             problem = f"cannot read: {exc.strerror or exc}"
-            warnings.warn(f"skipping {path}: {problem}", stacklevel=3)
+            warnings.warn(CagekitWarning(f"skipping {path}: {problem}"), stacklevel=3)
             skipped.append({"name": name, "size": -1, "mtime_ns": -1, "problem": problem})
             continue
         key = (st.st_size, st.st_mtime_ns)
@@ -573,8 +573,8 @@ def _scan(base, paths, old):
             entries.append([name, *key, old_files[name][1]])
         elif name in old_skipped and old_skipped[name][0] == key:
             problem = old_skipped[name][1]
-            warnings.warn(f"skipping {path}: {problem} (remembered by the cache)",
-                          stacklevel=3)
+            warnings.warn(CagekitWarning(f"skipping {path}: {problem} (remembered by the "
+                                         "cache)"), stacklevel=3)
             skipped.append({"name": name, "size": key[0], "mtime_ns": key[1],
                             "problem": problem})
         else:
@@ -594,7 +594,7 @@ def _sample_new(entries, skipped, todo, points, seed, progress) -> set:
                 V, F = load_shape(path)
                 entries[index][3] = _sample_shape(V, F, points, _shape_seed(seed, name))
             except InputError as exc:
-                warnings.warn(f"skipping {path}: {exc.problem}", stacklevel=3)
+                warnings.warn(CagekitWarning(f"skipping {path}: {exc.problem}"), stacklevel=3)
                 skipped.append({"name": name, "size": entries[index][1],
                                 "mtime_ns": entries[index][2], "problem": exc.problem})
                 failed.add(index)
@@ -665,8 +665,9 @@ class SampleCache:
                             for s in manifest.get("skipped", [])},
             }
         except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
-            warnings.warn(f"ignoring the unreadable cache in {cache} ({type(exc).__name__}: "
-                          f"{exc}); it will be rebuilt", stacklevel=3)
+            warnings.warn(CagekitWarning(f"ignoring the unreadable cache in {cache} "
+                                         f"({type(exc).__name__}: {exc}); it will be rebuilt"),
+                          stacklevel=3)
             return None
 
     def write(self, manifest: dict, names, stack) -> None:
@@ -686,7 +687,8 @@ class SampleCache:
             problem = getattr(exc, "problem", None) or getattr(exc, "strerror", None) or str(exc)
             if explicit:
                 raise InputError(f"cannot write the cache: {problem}", cache) from None
-            warnings.warn(f"not caching samples: cannot write {cache} ({problem})", stacklevel=3)
+            warnings.warn(CagekitWarning(f"not caching samples: cannot write {cache} "
+                                         f"({problem})"), stacklevel=3)
 
 
 # ------------------------------------------------------------------------------- pairs

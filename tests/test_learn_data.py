@@ -10,7 +10,7 @@ import warnings
 import numpy as np
 import pytest
 
-from cagekit.errors import InputError
+from cagekit.errors import CagekitWarning, InputError
 from cagekit.io import save_mesh, save_points
 from cagekit.shapes import box_cage, icosphere_cage
 from cagekit_learn import data
@@ -221,7 +221,7 @@ def test_points_or_seed_change_resamples_all(folder, monkeypatch):
 
 def test_broken_file_skipped_with_warning(folder, monkeypatch):
     (folder / "misc" / "broken.obj").write_text("v 0 0 0\nf 1 2 3\n")
-    with pytest.warns(UserWarning, match=r"broken\.obj") as record:
+    with pytest.warns(CagekitWarning, match=r"broken\.obj") as record:
         c = ShapeCollection.from_folder(folder, points=P)
     assert len(c) == 3 and "misc/broken.obj" not in c.names
     message = str([w.message for w in record if "broken.obj" in str(w.message)][0])
