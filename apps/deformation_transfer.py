@@ -456,9 +456,34 @@ def main(template, template_cage, template_landmarks, character, character_landm
     start = time.perf_counter()
     pose_paths = _pose_paths(poses)
     names = _output_names(pose_paths)
-    inputs = [template, template_cage, template_landmarks, character, character_landmarks,
-              *map(str, pose_paths)]
     out = Path(out_dir)
+    _check_outputs(out, names, grid_path, [template, template_cage, template_landmarks,
+                                           character, character_landmarks,
+                                           *map(str, pose_paths)])
+    inputs = _load(template, template_cage, template_landmarks, character,
+                   character_landmarks, pose_paths, model_path)
+    loaded = time.perf_counter()
+    Vt, Ft, cage_v, cage_f, marks_t, Vc, Fc, marks_c, pose_meshes, model = inputs
+    char = fit_character(Vt, cage_v, cage_f, marks_t, Vc, Fc, marks_c, align=align,
+                         max_evaluations=max_evaluations, template_name=template_landmarks,
+                         character_name=character_landmarks)
+    unmatched = char.match.unmatched(template_landmarks, character_landmarks)
+    if unmatched:
+        warnings.warn(CagekitWarning(unmatched), stacklevel=1)
+    cage_check = check_fitted_cage(char)
+    for problem in cage_check["problems"]:
+        warnings.warn(CagekitWarning(f"the fitted character cage {problem}"), stacklevel=1)
+    fitted = time.perf_counter()
+    results = _transfer_poses(char, (Vt, Ft), (cage_v, cage_f), pose_meshes, model, seed)
+    rows = _write(out, char, pose_paths, names, results, pose_meshes, grid_path)
+    seconds = {"load": loaded - start, "fit": fitted - loaded,
+               "transfer": time.perf_counter() - fitted}
+    _report(out, char, rows, cage_check, seconds, start, template, character, model, align,
+            grid_path, as_json)
+
+
+def _check_outputs(out, names, grid_path, inputs):
+    """Refuse outputs that are inputs and a picture path that cannot be written."""
     outputs = [out / name for name in names] + [out / "character_cage.obj",
                                                  out / "report.json"]
     if grid_path is not None:
@@ -473,6 +498,11 @@ def main(template, template_cage, template_landmarks, character, character_landm
             if same_file(str(output), given):
                 raise InputError(f"refusing to overwrite the input file {given}; choose "
                                  "another output folder", output)
+
+
+def _load(template, template_cage, template_landmarks, character, character_landmarks,
+          pose_paths, model_path):
+    """Every input, read and checked before any work (the model too, when given)."""
     Vt, Ft = io.load_mesh(template)
     cage_v, cage_f = io.load_mesh(template_cage)
     cage_f = check_cage(cage_v, cage_f, name=template_cage)
@@ -480,24 +510,19 @@ def main(template, template_cage, template_landmarks, character, character_landm
     marks_t = load_landmarks(template_landmarks)
     Vc, Fc = io.load_mesh(character)
     marks_c = load_landmarks(character_landmarks)
-    pose_meshes = [io.load_mesh(path) for path in pose_paths]  # every input read first
+    pose_meshes = [io.load_mesh(path) for path in pose_paths]
     model = None
     if model_path:
         from cagekit_learn.train import load_model
 
         model = load_model(model_path)[0]
         check_model(model, Vt, cage_v, model_path)
-    loaded = time.perf_counter()
-    char = fit_character(Vt, cage_v, cage_f, marks_t, Vc, Fc, marks_c, align=align,
-                         max_evaluations=max_evaluations, template_name=template_landmarks,
-                         character_name=character_landmarks)
-    unmatched = char.match.unmatched(template_landmarks, character_landmarks)
-    if unmatched:
-        warnings.warn(CagekitWarning(unmatched), stacklevel=1)
-    cage_check = check_fitted_cage(char)
-    for problem in cage_check["problems"]:
-        warnings.warn(CagekitWarning(f"the fitted character cage {problem}"), stacklevel=1)
-    fitted = time.perf_counter()
+    return Vt, Ft, cage_v, cage_f, marks_t, Vc, Fc, marks_c, pose_meshes, model
+
+
+def _transfer_poses(char, template, template_cage, pose_meshes, model, seed):
+    """(transferred vertices, seconds) per pose, classical or learned."""
+    (Vt, Ft), (cage_v, cage_f) = template, template_cage
     fitter = classical_fitter(Vt, cage_v, cage_f) if model is None else None
     results = []
     with progress_bar("poses", "pose", total=len(pose_meshes)) as bar:
@@ -510,6 +535,11 @@ def main(template, template_cage, template_landmarks, character, character_landm
                 deformed = template_cage_learned(model, Vt, cage_v, (Vp, Fp))
             results.append((transfer(char, deformed), time.perf_counter() - t0))
             bar.update(1)
+    return results
+
+
+def _write(out, char, pose_paths, names, results, pose_meshes, grid_path):
+    """The transferred poses, the character's cage and the picture; a row per pose."""
     with output_folder(out):
         rows = []
         for path, name, (X, seconds) in zip(pose_paths, names, results):
@@ -521,6 +551,12 @@ def main(template, template_cage, template_landmarks, character, character_landm
             render_grid(grid_path, [pose_meshes[:8], transferred],
                         titles=[Path(p).stem for p in pose_paths[:8]],
                         labels=["template", "transferred character"])
+    return rows
+
+
+def _report(out, char, rows, cage_check, seconds, start, template, character, model, align,
+            grid_path, as_json):
+    """report.json, then one line (or the report as JSON) on stdout."""
     fit = char.fit
     report = {
         "template": template, "character": character,
@@ -536,9 +572,7 @@ def main(template, template_cage, template_landmarks, character, character_landm
         "landmark_errors": dict(zip(char.match.labels, fit.landmark_errors.tolist())),
         "character_cage": cage_check,
         "poses": rows,
-        "seconds": {"load": loaded - start, "fit": fitted - loaded,
-                    "transfer": time.perf_counter() - fitted,
-                    "total": time.perf_counter() - start},
+        "seconds": {**seconds, "total": time.perf_counter() - start},
         "outputs": {"cage": str(out / "character_cage.obj"),
                     "report": str(out / "report.json"), "grid": grid_path},
     }
