@@ -62,12 +62,12 @@ def template_cage():
 
 
 def _as_shape(shape_v, shape_f):
-    """The shape (:func:`cagekit.geometry.as_shape`), with at least two distinct points."""
+    """The shape (:func:`cagekit.geometry.as_shape`) and its fitting frame; refuses fewer
+    than two distinct points and extents that are zero, overflow or cannot be resolved."""
     v, f = as_shape(shape_v, shape_f)
     if len(v) < 2:
         raise InputError("a cage needs a shape with at least two distinct points")
-    _frame(v)  # refuses shapes whose extent is zero, overflows or cannot be resolved
-    return v, f
+    return v, f, _frame(v)
 
 
 def _frame(v):
@@ -526,7 +526,7 @@ def cage_report(shape_v, shape_f, cage_v, cage_f, faces: int | None = None,
         says which) and ``max_distance`` (largest distance from the cage surface to the
         shape, over the shape's bounding-box diagonal).
     """
-    v, f = _as_shape(shape_v, shape_f)
+    v, f, frame = _as_shape(shape_v, shape_f)
     cv = np.asarray(cage_v, dtype=np.float64)
     cf = np.asarray(cage_f, dtype=np.int64)
     if cv.ndim != 2 or cv.shape[1] != 3 or len(cv) < 4 or cf.ndim != 2 or len(cf) < 4:
@@ -534,7 +534,6 @@ def cage_report(shape_v, shape_f, cage_v, cage_f, faces: int | None = None,
                          f"vertices and {len(cf)} faces")
     if not np.all(np.isfinite(cv)) or cf.min() < 0 or cf.max() >= len(cv):
         raise InputError("the cage has NaN coordinates or face indices out of range")
-    frame = _frame(v)
     vn, cvn = frame.to_unit(v), frame.to_unit(cv)
     pts = _samples(vn, f, samples, seed)
     checks = _checks(cvn, cf, vn, f, pts, len(cf) if faces is None else faces, components)
@@ -636,8 +635,7 @@ def fit_cage(shape_v, shape_f=None, faces: int = 200, method: str = "wrap", *,
         raise InputError(f"the template cage has {TEMPLATE_FACES} faces, more than the "
                          f"{faces} asked for; ask for {TEMPLATE_FACES} or more, or use "
                          "method wrap")
-    v, f = _as_shape(shape_v, shape_f)
-    frame = _frame(v)
+    v, f, frame = _as_shape(shape_v, shape_f)
     vn = frame.to_unit(v)
     pts = _samples(vn, f, samples, seed)
     if method == "template":

@@ -49,8 +49,7 @@ def apply(ctx, mesh, cage, deformed_cage, out, coords, as_json):
     check_output(out, (mesh, cage, deformed_cage))
     seconds = {}
     t0 = time.perf_counter()
-    V, F, CV, faces, DV = _load(mesh, cage, deformed_cage, out)
-    write = shape_writer(out, has_faces=len(F) > 0)
+    V, F, CV, faces, DV, write = _load(mesh, cage, deformed_cage, out)
     seconds["load"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -72,7 +71,8 @@ def apply(ctx, mesh, cage, deformed_cage, out, coords, as_json):
 
 
 def _load(mesh, cage, deformed_cage, out):
-    """The shape, the checked cage (vertices, oriented faces) and the deformed cage."""
+    """The shape, the checked cage (vertices, oriented faces), the deformed cage and the
+    writer of the output (its format checked before the cages are read)."""
     import numpy as np
 
     from cagekit import io
@@ -80,7 +80,7 @@ def _load(mesh, cage, deformed_cage, out):
     from cagekit.geometry import face_areas
 
     V, F = io.load_shape(mesh)
-    shape_writer(out, has_faces=len(F) > 0)  # refuse a wrong format before reading on
+    write = shape_writer(out, has_faces=len(F) > 0)
     CV, CF = io.load_mesh(cage)
     try:
         face_areas(CV, CF)  # areas that overflow would be reported as "zero area" below
@@ -95,7 +95,7 @@ def _load(mesh, cage, deformed_cage, out):
     if len(DF) and (DF.shape != CF.shape or not np.array_equal(DF, CF)):
         raise InputError(f"its faces differ from those of {cage}; the deformed cage must "
                          "be the same mesh with moved vertices", deformed_cage)
-    return V, F, CV, faces, DV
+    return V, F, CV, faces, DV, write
 
 
 def _report(out, V, F, CV, coords, outside, seconds, as_json):

@@ -169,8 +169,7 @@ def deform(ctx, source, target, out, method, cage_path, faces, save_cage, symmet
     outputs = _check_options(ctx, source, target, out, method, cage_path, save_cage,
                              symmetry, landmarks, weights, model_path, refine, preview)
     model = _load_model(model_path) if model_path else None
-    src, tgt, cage, pairs = _load_inputs(source, target, out, cage_path, landmarks)
-    write = shape_writer(out, has_faces=len(src[1]) > 0)
+    src, tgt, cage, pairs, write = _load_inputs(source, target, out, cage_path, landmarks)
     options = {"symmetry": None if symmetry == "none" else symmetry,
                "weights": weights or None, "reference": reference, "coords": coords}
     with progress_bar("deform", "eval",
@@ -221,13 +220,14 @@ def _check_options(ctx, source, target, out, method, cage_path, save_cage, symme
 
 
 def _load_inputs(source, target, out, cage_path, landmarks):
-    """The two shapes, the checked cage (or None) and the landmark pair (or None)."""
+    """The two shapes, the checked cage (or None), the landmark pair (or None) and the
+    writer of the output (its format checked before the target is read)."""
     from cagekit import io
     from cagekit.cage import check_cage
     from cagekit.coords.binding import warn_outside
 
     src = io.load_shape(source)
-    shape_writer(out, has_faces=len(src[1]) > 0)  # refuse a wrong format before reading on
+    write = shape_writer(out, has_faces=len(src[1]) > 0)
     tgt = io.load_shape(target)
     cage = None
     if cage_path is not None:
@@ -235,7 +235,7 @@ def _load_inputs(source, target, out, cage_path, landmarks):
         cage = (cage_v, check_cage(cage_v, cage_f, name=cage_path))
         warn_outside(src[0], *cage, shape=source, cage=cage_path)
     pairs = _load_landmark_pair(*landmarks) if landmarks else None
-    return src, tgt, cage, pairs
+    return src, tgt, cage, pairs, write
 
 
 def _run(src, tgt, cage, pairs, model, method, faces, refine, seed, options, progress):
