@@ -63,16 +63,22 @@ class Frame:
         object.__setattr__(self, "scale", scale)
 
     @classmethod
-    def of(cls, V: ArrayLike, unit: str = "half_extent") -> Frame:
+    def of(cls, V: ArrayLike, unit: str = "half_extent", name: str | None = None) -> Frame:
         """The frame of a shape: its bounding-box centre and, as the unit, its largest
         half-extent (the paper's, default) or its diagonal (``unit="diagonal"``).
 
         Raises :class:`~cagekit.errors.InputError` for a shape whose extent is zero,
-        overflows or cannot be resolved (:func:`bounding_box`).
+        overflows or cannot be resolved (:func:`bounding_box`); ``name`` (``"the
+        source"``) starts the message, so that a caller can tell which shape it was.
         """
         if unit not in UNITS:
             raise InputError(f"unit must be one of {', '.join(UNITS)}, got {unit!r}")
-        centre, extent = bounding_box(V)
+        try:
+            centre, extent = bounding_box(V)
+        except InputError as exc:
+            if name is None:
+                raise
+            raise InputError(f"{name}: {exc.problem}", exc.path) from None
         if unit == "diagonal":
             return cls(centre, bounding_box_diagonal(extent))
         return cls(centre, float(0.5 * np.max(extent)))

@@ -107,7 +107,7 @@ def _predicted(model, Vs, Fs, Vt, Ft, points, seed):
     in them, and the two cages in the source's and the target's unit frames.
     """
     points = 1024 if points is None else int(points)
-    fs, ft = Frame.of(Vs), Frame.of(Vt)
+    fs, ft = Frame.of(Vs, name="the source"), Frame.of(Vt, name="the target")
     Vs_n, Vt_n = fs.to_unit(Vs), ft.to_unit(Vt)
     fixed = getattr(model, "fixed_source", None)
     config = getattr(model, "config", None)

@@ -21,6 +21,7 @@ from __future__ import annotations
 import csv
 import math
 import os
+import sys
 import time
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
@@ -57,6 +58,10 @@ LOG_NAME = "log.csv"
 TERMS = ("align", "mvc", "p2f", "normal", "symmetry")
 #: N_c's learning rate relative to ``lr`` (the paper's ratio)
 NC_LR_FACTOR = 0.1
+#: settings that earlier versions stored and this one fixes (a checkpoint with other
+#: values is refused on resume rather than continued differently)
+_RETIRED_SETTINGS = {"alpha_mvc": ALPHA_MVC, "alpha_symmetry": 1.0,
+                     "nc_lr_factor": NC_LR_FACTOR}
 
 
 @dataclass
@@ -524,7 +529,7 @@ def train(config: TrainConfig, resume: bool = False, progress: bool = True,
 
     With ``config.fixed_source`` (or fixed-source samples already in ``config.model``)
     every pair is (template, shape), every shape once per epoch, the template never
-    augmented; see "Fixed source" in the module's notes.
+    augmented (the module docstring, and docs/architecture.md).
 
     Returns
     -------
@@ -604,6 +609,11 @@ class Trainer:
         with _usable(self.run_dir / CHECKPOINT_NAME):
             stored = TrainConfig.from_dict(payload["config"])
             weights = payload["model"]
+            for name, value in _RETIRED_SETTINGS.items():  # settings of earlier versions
+                if payload["config"].get(name, value) != value:
+                    raise InputError(f"was trained with {name}={payload['config'][name]}, "
+                                     f"which this version fixes at {value}: it cannot "
+                                     "continue exactly", str(self.run_dir))
         _refuse_nonfinite(weights, self.run_dir)
         for name in ("epochs", "max_steps", "max_minutes", "device"):
             if getattr(config, name) is not None:  # None: keep the stopped run's own
@@ -719,3 +729,9 @@ class Trainer:
                            self.step_count // self.steps_per_epoch, self.skipped, self.last,
                            seconds,
                            self.trained_pairs / seconds if seconds > 0 else float("nan"))
+
+
+if __name__ == "__main__":  # the entry of earlier versions: say where it went
+    print("python -m cagekit_learn.train is gone: run `cagekit train ...`, `python -m "
+          "cagekit.cli train ...` or `torchrun ... -m cagekit.cli train ...`", file=sys.stderr)
+    sys.exit(2)

@@ -115,7 +115,9 @@ def test_deform_bad_inputs_exit_2_with_one_line(pair, tmp_path):
                      "--weight")
     one_point = tmp_path / "one.xyz"
     one_point.write_text("0 0 0\n")
-    assert_bad_input(cagekit("deform", source, one_point, "-o", out), "one.xyz")
+    result = cagekit("deform", source, one_point, "-o", out)
+    assert_bad_input(result, "one.xyz")
+    assert str(source) not in result.stderr  # the degenerate shape's file alone is named
     huge = tmp_path / "huge.xyz"
     huge.write_text("-1.7e308 0 0\n1.7e308 1 0\n0 0 1\n")
     assert_bad_input(cagekit("deform", source, huge, "-o", out, "--method", "scale"),

@@ -127,6 +127,25 @@ def test_checkpoint_holds_the_config_and_loads_without_running_code(tmp_path, va
         load_checkpoint(tmp_path / "missing.pt")
 
 
+def test_checkpoints_of_earlier_versions_resume_unless_a_retired_setting_differs(tmp_path,
+                                                                                vases):
+    """Earlier versions stored alpha_mvc, alpha_symmetry and nc_lr_factor in the config:
+    with their (now fixed) values a run resumes exactly; with others it is refused."""
+    train(_config(tmp_path, max_steps=3), progress=False, collection=vases)
+    path = tmp_path / "run" / "checkpoint.pt"
+    payload = load_checkpoint(path)
+    payload["config"].update(alpha_mvc=1.0, alpha_symmetry=1.0, nc_lr_factor=0.1)
+    save_checkpoint(path, payload)
+    resumed = train(_config(tmp_path, max_steps=4), resume=True, progress=False,
+                    collection=vases)
+    assert resumed.step == 4
+    payload = load_checkpoint(path)
+    payload["config"]["nc_lr_factor"] = 0.5
+    save_checkpoint(path, payload)
+    with pytest.raises(InputError, match=r"nc_lr_factor=0\.5.*cannot continue exactly"):
+        train(_config(tmp_path, max_steps=5), resume=True, progress=False, collection=vases)
+
+
 def test_checkpoints_are_written_atomically(tmp_path, monkeypatch):
     path = tmp_path / "checkpoint.pt"
     save_checkpoint(path, {"model": {"w": torch.ones(2)}, "step": 1})
@@ -144,6 +163,12 @@ def test_checkpoints_are_written_atomically(tmp_path, monkeypatch):
 def _train_command(run_dir, *extra):
     return [sys.executable, "-m", "cagekit.cli", "train", *TINY_ARGS, "-o", str(run_dir),
             "--checkpoint-every", "1", *extra]
+
+
+def test_the_old_module_entry_says_where_training_went():
+    done = subprocess.run([sys.executable, "-m", "cagekit_learn.train", "x", "-o", "y"],
+                          capture_output=True, text=True, env=_env(), cwd=ROOT, timeout=120)
+    assert done.returncode == 2 and "-m cagekit.cli train" in done.stderr
 
 
 def test_resume_after_a_kill_gives_the_weights_of_an_uninterrupted_run(tmp_path):

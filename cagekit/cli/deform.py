@@ -263,16 +263,14 @@ def _blamed(exc, source, target, cage_path, landmarks):
     if exc.path is not None:
         return exc
     low = exc.problem.lower()
-    if low.startswith("the source landmarks") and landmarks:
-        blamed = landmarks[0]
-    elif low.startswith("the target landmarks") and landmarks:
-        blamed = landmarks[1]
-    elif low.startswith("the source:"):
-        blamed = source
-    elif low.startswith("the target:"):
-        blamed = target
-    else:
-        blamed = (cage_path or source) if "cage" in low else f"{source}, {target}"
+    for role, index, shape in (("source", 0, source), ("target", 1, target)):
+        if low.startswith(f"the {role} landmarks") and landmarks:
+            problem = exc.problem.replace(f"the {role} shape's", f"{shape}'s")
+            return InputError(problem, landmarks[index])
+    for role, shape in (("source", source), ("target", target)):
+        if low.startswith(f"the {role}:"):  # the file names the shape: drop the role
+            return InputError(exc.problem[len(f"the {role}:"):].strip(), shape)
+    blamed = (cage_path or source) if "cage" in low else f"{source}, {target}"
     return InputError(exc.problem, blamed)
 
 
