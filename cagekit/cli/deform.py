@@ -52,14 +52,12 @@ def _parse_weights(ctx, param, values):
 def _deform_figures(source, target, result):
     """CD and dCotLap of a result (dCotLap only for a source with faces), in the frames
     the deformation used (``cagekit eval``'s definitions: each shape's own unit frame)."""
-    from cagekit.frame import Frame
     from cagekit.metrics import chamfer, evaluate
 
-    frames = (result.source_frame or Frame.of(source[0]),
-              result.target_frame or Frame.of(target[0]))
     if len(source[1]):
-        return evaluate(source, target, (result.vertices, source[1]), frames=frames)
-    ft = frames[1]
+        return evaluate(source, target, (result.vertices, source[1]),
+                        frames=(result.source_frame, result.target_frame))
+    ft = result.target_frame
     cd = chamfer(ft.to_unit(result.vertices), None, ft.to_unit(target[0]), target[1])
     return {"cd": cd, "dcotlap": None, "cd_x1e2": cd * 1e2, "dcotlap_x1e3": None}
 
