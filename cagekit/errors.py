@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import os
 
-__all__ = ["InputError", "MeshFileError", "LandmarkFileError", "CageError", "CagekitWarning",
+__all__ = ["InputError", "MeshFileError", "LandmarkFileError", "CageError", "CageFitError",
+           "CagekitWarning",
            "MeshFileWarning", "OutsideCageWarning"]
 
 
@@ -44,6 +45,10 @@ class LandmarkFileError(InputError):
 
 class CageError(InputError):
     """A cage is not a closed, 2-manifold, consistently oriented triangle mesh."""
+
+
+class CageFitError(InputError):
+    """No valid cage could be fitted to the given shape (the message says what failed)."""
 
 
 class CagekitWarning(UserWarning):

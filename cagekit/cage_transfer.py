@@ -1,0 +1,236 @@
+"""Carry a template cage's motion onto a character's cage of the same topology.
+
+The template's cage ``C_s`` moves to ``C_st`` (an example pose); the character's cage
+``C_c`` (same faces, fitted to the character's rest pose) must move "the same way". Two
+rules:
+
+- ``"offsets"``, the paper's ``C_c + A (C_st - C_s)``: right when the two rest poses
+  agree, but an arm that starts higher is pushed past the target.
+- ``"pose"`` (deformation transfer on the cage, after Sumner & Popovic 2004; no
+  correspondence problem since the cages share their faces): per face, the deformation
+  gradient of ``C_s -> C_st`` is split ``R_t S_t`` and that of ``C_s -> C_c`` is split
+  ``R_c S_c`` (polar decomposition); the new cage's face takes ``R_t S_t S_c``, the
+  template's rotation and stretch after the character's own stretch, so the character's
+  rest rotation is replaced (a T-pose example gives a T-pose, whatever the character's
+  rest pose). The cage is the sparse least-squares fit of every face's edges to those
+  gradients; its translation, which edges cannot fix, follows the offsets rule at the
+  cage vertices the template moves least (the root of the motion).
+
+Both work in the template's frame: ``alignment`` maps it to the character's.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse
+import scipy.sparse.linalg
+
+from cagekit.alignment import Similarity
+from cagekit.errors import InputError
+from cagekit.geometry import as_vertices
+
+__all__ = ["RULES", "face_gradients", "polar", "transfer_offsets", "transfer_pose",
+           "transfer_cage"]
+
+#: the rules :func:`transfer_cage` knows
+RULES = ("pose", "offsets")
+#: share of the cage vertices, least moved by the template, that fix the translation
+ROOT_SHARE = 0.1
+
+
+def _frames(V, F) -> np.ndarray:
+    """(m, 3, 3) per face: the columns are two edges and the scaled normal (Sumner)."""
+    a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
+    e1, e2 = b - a, c - a
+    n = np.cross(e1, e2)
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    if np.any(length <= 0):
+        raise InputError("a cage face has zero area: its deformation gradient is undefined")
+    return np.stack([e1, e2, n / np.sqrt(length)], axis=2)
+
+
+def face_gradients(rest_v, deformed_v, faces) -> np.ndarray:
+    """Per-face deformation gradients of a triangle mesh (Sumner & Popovic 2004).
+
+    Parameters
+    ----------
+    rest_v, deformed_v : (k, 3) array_like of float
+        The same mesh before and after a deformation.
+    faces : (m, 3) array_like of int
+
+    Returns
+    -------
+    (m, 3, 3) float64
+        ``T_f`` with ``T_f e = e'`` for both edges of face ``f`` from its first vertex and
+        ``T_f n = n'`` for its normal scaled by ``1/sqrt(|n|)``.
+
+    Examples
+    --------
+    >>> from cagekit.shapes import box_cage
+    >>> v, f = box_cage()
+    >>> bool(np.allclose(face_gradients(v, 2 * v + 1, f), 2 * np.eye(3)))
+    True
+    """
+    F = np.asarray(faces, dtype=np.int64)
+    rest = _frames(as_vertices(rest_v, "rest_v"), F)
+    moved = _frames(as_vertices(deformed_v, "deformed_v"), F)
+    return moved @ np.linalg.inv(rest)
+
+
+def polar(T) -> tuple[np.ndarray, np.ndarray]:
+    """Polar decomposition ``T = R S`` of (m, 3, 3) matrices (SVD).
+
+    Returns
+    -------
+    R : (m, 3, 3) float64
+        Proper rotations (an inverted face keeps ``det R = +1``; its reflection goes
+        into ``S``).
+    S : (m, 3, 3) float64
+        Symmetric.
+
+    Examples
+    --------
+    >>> c, s = np.cos(0.3), np.sin(0.3)
+    >>> R0 = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+    >>> R, S = polar((R0 @ np.diag([2.0, 1.0, 0.5]))[None])
+    >>> bool(np.allclose(R[0], R0)), bool(np.allclose(S[0], np.diag([2.0, 1.0, 0.5])))
+    (True, True)
+    """
+    T = np.asarray(T, dtype=np.float64)
+    U, sigma, Vt = np.linalg.svd(T)
+    D = np.ones_like(sigma)
+    D[:, 2] = np.sign(np.linalg.det(U @ Vt))
+    D[D == 0] = 1.0
+    R = U @ (D[:, :, None] * Vt)
+    S = np.swapaxes(Vt, 1, 2) @ ((D * sigma)[:, :, None] * Vt)
+    return R, S
+
+
+def transfer_offsets(template_cage_v, deformed_template_cage_v, character_cage_v,
+                     alignment: Similarity) -> np.ndarray:
+    """The paper's rule ``C_c + A (C_st - C_s)``, A the alignment's linear part.
+
+    Parameters
+    ----------
+    template_cage_v, deformed_template_cage_v : (k, 3) array_like of float
+        ``C_s`` and ``C_st``, in the template's frame.
+    character_cage_v : (k, 3) array_like of float
+        ``C_c``, in the character's frame.
+    alignment : Similarity
+        Template frame -> character frame.
+
+    Returns
+    -------
+    (k, 3) float64
+
+    Examples
+    --------
+    >>> A = Similarity(2.0, np.eye(3), np.zeros(3))
+    >>> transfer_offsets(np.zeros((1, 3)), np.ones((1, 3)), np.full((1, 3), 5.0), A).tolist()
+    [[7.0, 7.0, 7.0]]
+    """
+    offsets = (as_vertices(deformed_template_cage_v, "deformed_template_cage_v")
+               - as_vertices(template_cage_v, "template_cage_v"))
+    return as_vertices(character_cage_v, "character_cage_v") + alignment.apply_vectors(offsets)
+
+
+def _edge_operator(F: np.ndarray, k: int) -> scipy.sparse.csr_matrix:
+    """(3m, k): row ``3f + i`` is vertex ``(i+1) % 3`` minus vertex ``i`` of face ``f``."""
+    m = len(F)
+    rows = np.repeat(np.arange(3 * m), 2)
+    heads, tails = F[:, [1, 2, 0]].ravel(), F.ravel()
+    cols = np.stack([heads, tails], axis=1).ravel()
+    vals = np.tile([1.0, -1.0], 3 * m)
+    return scipy.sparse.csr_matrix((vals, (rows, cols)), shape=(3 * m, k))
+
+
+def transfer_pose(template_cage_v, deformed_template_cage_v, character_cage_v, cage_f,
+                  alignment: Similarity) -> np.ndarray:
+    """The pose-aware rule: the template's rotations, the character's stretch (see module).
+
+    Parameters
+    ----------
+    template_cage_v, deformed_template_cage_v : (k, 3) array_like of float
+        ``C_s`` and ``C_st``, in the template's frame.
+    character_cage_v : (k, 3) array_like of float
+        ``C_c``, in the character's frame; same faces as ``C_s``.
+    cage_f : (m, 3) array_like of int
+    alignment : Similarity
+        Template frame -> character frame.
+
+    Returns
+    -------
+    (k, 3) float64
+        The character's deformed cage, in the character's frame.
+
+    Examples
+    --------
+    A character whose cage is the template's turned by 90 degrees, under an example that
+    leaves the template still, is turned back (pose transfer; the offsets rule would
+    leave it turned):
+
+    >>> from cagekit.shapes import box_cage
+    >>> v, f = box_cage()
+    >>> turn = np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]])
+    >>> out = transfer_pose(v, v, v @ turn.T, f, Similarity.identity())
+    >>> bool(np.allclose(out - out.mean(0), v - v.mean(0)))
+    True
+    """
+    Cs = as_vertices(template_cage_v, "template_cage_v")
+    Ct = as_vertices(deformed_template_cage_v, "deformed_template_cage_v")
+    F = np.asarray(cage_f, dtype=np.int64)
+    Cc = alignment.invert(as_vertices(character_cage_v, "character_cage_v"))
+    if not Cs.shape == Ct.shape == Cc.shape:
+        raise InputError(f"the three cages must have the same vertex count, got {len(Cs)}, "
+                         f"{len(Ct)} and {len(Cc)}")
+    Rt, St = polar(face_gradients(Cs, Ct, F))
+    _, Sc = polar(face_gradients(Cs, Cc, F))
+    G = Rt @ St @ Sc
+    # every face edge of C_s mapped by its face's gradient: the target edges
+    D = _edge_operator(F, len(Cs))
+    rest_edges = (D @ Cs).reshape(-1, 3, 3)
+    target = np.einsum("fij,fej->fei", G, rest_edges).reshape(-1, 3)
+    offsets = transfer_offsets(Cs, Ct, Cc, Similarity.identity())
+    weights = _root_weights(np.linalg.norm(Ct - Cs, axis=1))
+    # min |D X - target|^2 + eps sum_i w_i |x_i - offsets_i|^2: the tiny term fixes the
+    # translation (the weighted mean of X is that of the offsets rule), nothing else
+    eps = 1e-8 * float(D.multiply(D).sum()) / max(float(weights.sum()), 1e-300)
+    K = (D.T @ D + eps * scipy.sparse.diags(weights)).tocsc()
+    rhs = D.T @ target + eps * weights[:, None] * offsets
+    X = scipy.sparse.linalg.splu(K).solve(rhs)
+    # the weighted mean exactly (the eps term leaves an O(eps) error elsewhere)
+    X += (weights @ offsets - weights @ X) / weights.sum()
+    if not np.isfinite(X).all():
+        raise FloatingPointError("the pose-aware transfer produced NaN or inf positions")
+    return alignment.apply(X)
+
+
+def _root_weights(displacement) -> np.ndarray:
+    """1 on the :data:`ROOT_SHARE` least-displaced cage vertices, 0 elsewhere."""
+    count = max(1, int(np.ceil(ROOT_SHARE * len(displacement))))
+    weights = np.zeros(len(displacement))
+    weights[np.argsort(displacement, kind="stable")[:count]] = 1.0
+    return weights
+
+
+def transfer_cage(rule, template_cage_v, deformed_template_cage_v, character_cage_v,
+                  cage_f, alignment: Similarity) -> np.ndarray:
+    """The character's deformed cage by ``rule`` (``"pose"`` or ``"offsets"``).
+
+    Parameters
+    ----------
+    rule : {"pose", "offsets"}
+    template_cage_v, deformed_template_cage_v, character_cage_v, cage_f, alignment
+        As for :func:`transfer_pose`.
+
+    Returns
+    -------
+    (k, 3) float64
+    """
+    if rule == "pose":
+        return transfer_pose(template_cage_v, deformed_template_cage_v, character_cage_v,
+                             cage_f, alignment)
+    if rule == "offsets":
+        return transfer_offsets(template_cage_v, deformed_template_cage_v, character_cage_v,
+                                alignment)
+    raise InputError(f"rule must be one of {', '.join(RULES)}, got {rule!r}")
