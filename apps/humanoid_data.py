@@ -1,21 +1,33 @@
 """Posed humanoids with ground truth for deformation transfer (files on disk).
 
-Writes, from :mod:`cagekit.datasets.humanoid` and a seed, what
-``python -m apps.deformation_transfer`` and ``cagekit train --fixed-source`` need, and the
-ground truth that judges a transfer::
+Writes, from :mod:`cagekit.datasets.humanoid` and a seed, what ``cagekit transfer`` and
+``cagekit train --fixed-source`` need, and the ground truth that judges a transfer::
 
     OUT_DIR/template.obj                 the template body in rest pose (T-pose)
-    OUT_DIR/template_cage.obj            its cage (cagekit.fit_cage, --cage-faces faces)
+    OUT_DIR/template_cage.obj            its cage (--cage artist: one tube per limb,
+                                         cagekit.datasets.humanoid_cage; --cage fit:
+                                         cagekit.fit_cage with --cage-faces faces)
     OUT_DIR/template_landmarks.json      --landmarks named landmarks on it
-    OUT_DIR/characters/<body>.obj        each novel body in rest pose
-    OUT_DIR/characters/<body>_landmarks.json
+    OUT_DIR/characters/<body>.obj        bodies in the template's rest pose and mesh
+    OUT_DIR/characters/<body>_landmarks.json   (the same landmark vertices)
+    OUT_DIR/characters/<name>.obj        novel characters: rest poses, meshes and surface
+    OUT_DIR/characters/<name>.picked     landmarks of their own (cagekit.datasets.characters)
     OUT_DIR/poses/pose_000.obj ...       the template in --poses test poses
+    OUT_DIR/reverse/pose_00.obj ...      the template in rest-like poses (REVERSE_POSES),
+    OUT_DIR/reverse/pose_00_cage.obj     with its cage and landmarks posed with it: the
+    OUT_DIR/reverse/pose_00_landmarks.json   examples pose -> rest (target: the T-pose)
     OUT_DIR/truth/<body>/pose_000.obj    each body posed with the same joint rotations
+    OUT_DIR/truth/<name>/t_pose.obj      each novel character in the template's rest pose
     OUT_DIR/train/pose_0000.ply ...      the template in --train-poses other poses
 
 Test pose ``i`` is ``random_pose(TEST_POSE_SEED + i)`` and training pose ``i`` is
 ``random_pose(seed + i)`` (seeds below ``TEST_POSE_SEED``), so the two never share a pose.
-Every mesh shares the template's faces and every body the same landmark labels. Usage::
+The template's poses share its faces. The cage of a reverse pose is the template cage moved
+by the rig's skinning (each cage vertex takes the mean weights of its 8 nearest template
+vertices, the fingers' given to the wrist), as an artist's rigged cage would move; it is
+checked (no self-intersection, the posed template inside). The test poses bend knees and
+elbows too far for that (the skinned cage folds), so the reverse examples are rest-like
+poses, as a template's rest pose and T-pose are. Usage::
 
     python -m apps.humanoid_data OUT_DIR [--poses 20] [--train-poses 1000] [--seed 0]
 """
@@ -30,15 +42,20 @@ import numpy as np
 
 from cagekit import io
 from cagekit.cli.common import Command, FiniteFloatRange, debug_option, emit_json, json_option
-from cagekit.datasets import humanoid
+from cagekit.datasets import characters, humanoid
 from cagekit.errors import InputError
-from cagekit.files import atomic_output
-from cagekit.landmarks import save_landmarks
+from cagekit.files import atomic_output, output_folder
+from cagekit.landmarks import save_landmarks, save_picked
 
-__all__ = ["TEST_POSE_SEED", "landmark_names", "landmarks_of", "template_cage", "write"]
+__all__ = ["REVERSE_POSES", "TEST_POSE_SEED", "landmark_names", "landmarks_of", "posed_cage",
+           "template_cage", "write"]
 
 #: seed of the first test pose; training poses use seeds below it
 TEST_POSE_SEED = 100_000
+#: the reverse examples' poses (rest-like, :func:`cagekit.datasets.characters.rest_pose`)
+REVERSE_POSES = ({"arms": -30}, {"arms": 20, "legs": 5},
+                 {"arms": -15, "legs": 10, "turn": -8}, {"arms": 35, "elbows": 20},
+                 {"arms": -40, "legs": 3})
 
 
 def landmark_names(count: int) -> list[str]:
@@ -68,16 +85,54 @@ def landmarks_of(rig, names, vertices=None) -> dict[str, np.ndarray]:
     return {name: V[rig.landmarks[name]].copy() for name in names}
 
 
-def template_cage(V, F, faces: int = 196, seed: int = 0):
-    """A cage of about ``faces`` faces around a humanoid (:func:`cagekit.fit_cage`)."""
-    from cagekit.fitting import fit_cage
+def template_cage(rig, *, kind: str = "artist", faces: int = 196, seed: int = 0):
+    """The template's cage: ``"artist"`` (one tube per limb,
+    :func:`cagekit.datasets.humanoid_cage.humanoid_cage`) or ``"fit"``
+    (:func:`cagekit.fit_cage` with about ``faces`` faces)."""
+    if kind == "artist":
+        from cagekit.datasets.humanoid_cage import humanoid_cage
 
-    return fit_cage(V, F, faces=faces, seed=seed)
+        return humanoid_cage(rig)
+    if kind == "fit":
+        from cagekit.fitting import fit_cage
+
+        return fit_cage(rig.vertices, rig.faces, faces=faces, seed=seed)
+    raise InputError(f"cage must be 'artist' or 'fit', got {kind!r}")
+
+
+def posed_cage(rig, cage_v, cage_f, pose, neighbours: int = 8) -> np.ndarray:
+    """The cage moved by the rig's skinning into ``pose`` (module docstring), checked.
+
+    Raises
+    ------
+    CageError
+        The posed cage intersects itself or leaves the posed rig outside.
+    """
+    from scipy.spatial import cKDTree
+
+    from cagekit.cage import cage_encloses, check_cage
+    from cagekit.errors import CageError
+
+    _, nearest = cKDTree(rig.vertices).query(cage_v, k=neighbours)
+    weights = rig.weights[nearest].mean(axis=1)
+    for j, name in enumerate(humanoid.JOINTS):
+        side, base = name[:2], name[2:]
+        if side in ("l_", "r_") and base[:-1] in characters.FINGERS:
+            weights[:, humanoid.JOINTS.index(side + "wrist")] += weights[:, j]
+            weights[:, j] = 0.0
+    skinned = humanoid.Rig(rig.shape, np.asarray(cage_v, np.float64), None, rig.joints,
+                           weights, {}, {})
+    posed = skinned.pose(pose)
+    check_cage(posed, cage_f)
+    if not cage_encloses(rig.pose(pose), posed, cage_f):
+        raise CageError("the skinned cage leaves part of the posed template outside")
+    return posed
 
 
 def write(out_dir, *, poses: int = 20, train_poses: int = 1000, seed: int = 0,
-          landmarks: int = 80, cage_faces: int = 196, resolution: float = 1.0,
-          bodies=humanoid.NOVEL_BODIES) -> dict:
+          landmarks: int = 100, cage: str = "artist", cage_faces: int = 196,
+          resolution: float = 1.0, bodies=humanoid.NOVEL_BODIES,
+          novel=tuple(characters.CHARACTERS), reverse: bool = True) -> dict:
     """Write the data set described in the module docstring.
 
     Parameters
@@ -91,12 +146,16 @@ def write(out_dir, *, poses: int = 20, train_poses: int = 1000, seed: int = 0,
         below :data:`TEST_POSE_SEED`.
     landmarks : int
         Landmarks written per body (:func:`landmark_names`).
-    cage_faces : int
-        Face budget of the template's cage.
+    cage : {"artist", "fit"}
+        The template's cage (:func:`template_cage`); ``cage_faces`` is the budget of "fit".
     resolution : float
-        Mesh resolution of the bodies.
+        Mesh resolution of the template and the bodies sharing its mesh.
     bodies : sequence of str
-        Novel bodies (names of ``humanoid.BODY_SHAPES``).
+        Bodies in the template's rest pose and mesh (names of ``humanoid.BODY_SHAPES``).
+    novel : sequence of str
+        Novel characters (names of :data:`cagekit.datasets.characters.CHARACTERS`).
+    reverse : bool
+        Write the reverse examples (:data:`REVERSE_POSES`).
 
     Returns
     -------
@@ -107,29 +166,49 @@ def write(out_dir, *, poses: int = 20, train_poses: int = 1000, seed: int = 0,
         raise InputError(f"--seed plus --train-poses must stay in [0, {TEST_POSE_SEED}]")
     names = landmark_names(landmarks)
     out = Path(out_dir)
-    for folder in ("characters", "poses", "train", *(f"truth/{b}" for b in bodies)):
-        (out / folder).mkdir(parents=True, exist_ok=True)
-    template = humanoid.rig("template", resolution=resolution)
-    F = template.faces
-    io.save_mesh(out / "template.obj", template.vertices, F)
-    cage_v, cage_f = template_cage(template.vertices, F, cage_faces, seed)
-    io.save_mesh(out / "template_cage.obj", cage_v, cage_f)
-    save_landmarks(out / "template_landmarks.json", landmarks_of(template, names))
-    rigs = {body: humanoid.rig(body, resolution=resolution) for body in bodies}
-    for body, rig in rigs.items():
-        io.save_mesh(out / "characters" / f"{body}.obj", rig.vertices, F)
-        save_landmarks(out / "characters" / f"{body}_landmarks.json",
-                       landmarks_of(rig, names))
-    for i in range(poses):
-        pose = humanoid.random_pose(TEST_POSE_SEED + i)
-        io.save_mesh(out / "poses" / f"pose_{i:03d}.obj", template.pose(pose), F)
+    with output_folder(out):
+        for folder in ("characters", "poses", "reverse", "train",
+                       *(f"truth/{b}" for b in (*bodies, *novel))):
+            (out / folder).mkdir(parents=True, exist_ok=True)
+        template = humanoid.rig("template", resolution=resolution)
+        F = template.faces
+        io.save_mesh(out / "template.obj", template.vertices, F)
+        cage_v, cage_f = template_cage(template, kind=cage, faces=cage_faces, seed=seed)
+        io.save_mesh(out / "template_cage.obj", cage_v, cage_f)
+        save_landmarks(out / "template_landmarks.json", landmarks_of(template, names))
+        rigs = {body: humanoid.rig(body, resolution=resolution) for body in bodies}
         for body, rig in rigs.items():
-            io.save_mesh(out / "truth" / body / f"pose_{i:03d}.obj", rig.pose(pose), F)
-    for i in range(train_poses):
-        pose = humanoid.random_pose(seed + i)
-        io.save_mesh(out / "train" / f"pose_{i:04d}.ply", template.pose(pose), F)
-    summary = {"out_dir": str(out), "bodies": list(bodies), "poses": poses,
-               "train_poses": train_poses, "landmarks": len(names),
+            io.save_mesh(out / "characters" / f"{body}.obj", rig.vertices, F)
+            save_landmarks(out / "characters" / f"{body}_landmarks.json",
+                           landmarks_of(rig, names))
+        chars = {name: characters.character(name, labels=names, seed=seed) for name in novel}
+        for name, char in chars.items():
+            io.save_mesh(out / "characters" / f"{name}.obj", char.vertices, char.faces)
+            save_picked(out / "characters" / f"{name}.picked", char.landmarks)
+            io.save_mesh(out / "truth" / name / "t_pose.obj", char.truth({}), char.faces)
+        for i in range(poses):
+            pose = humanoid.random_pose(TEST_POSE_SEED + i)
+            posed = template.pose(pose)
+            io.save_mesh(out / "poses" / f"pose_{i:03d}.obj", posed, F)
+            for body, rig in rigs.items():
+                io.save_mesh(out / "truth" / body / f"pose_{i:03d}.obj", rig.pose(pose), F)
+            for name, char in chars.items():
+                io.save_mesh(out / "truth" / name / f"pose_{i:03d}.obj", char.truth(pose),
+                             char.faces)
+        for i, angles in enumerate(REVERSE_POSES if reverse else ()):
+            pose = characters.rest_pose(**angles)
+            stem = out / "reverse" / f"pose_{i:02d}"
+            io.save_mesh(f"{stem}.obj", template.pose(pose), F)
+            io.save_mesh(f"{stem}_cage.obj", posed_cage(template, cage_v, cage_f, pose),
+                         cage_f)
+            save_landmarks(f"{stem}_landmarks.json",
+                           landmarks_of(template, names, template.pose(pose)))
+        for i in range(train_poses):
+            pose = humanoid.random_pose(seed + i)
+            io.save_mesh(out / "train" / f"pose_{i:04d}.ply", template.pose(pose), F)
+    summary = {"out_dir": str(out), "bodies": list(bodies), "characters": list(novel),
+               "poses": poses, "reverse_poses": len(REVERSE_POSES) if reverse else 0,
+               "train_poses": train_poses, "landmarks": len(names), "cage": cage,
                "template_vertices": len(template.vertices),
                "cage_vertices": len(cage_v), "cage_faces": len(cage_f), "seed": seed}
     with atomic_output(out / "manifest.json") as tmp, open(tmp, "w") as fh:
@@ -144,25 +223,30 @@ def write(out_dir, *, poses: int = 20, train_poses: int = 1000, seed: int = 0,
               help="Test poses of the template, each with ground truth for every body.")
 @click.option("--train-poses", default=1000, show_default=True, type=click.IntRange(min=0),
               help="Training poses of the template (for cagekit train --fixed-source).")
-@click.option("--landmarks", default=80, show_default=True, type=click.IntRange(min=4),
+@click.option("--landmarks", default=100, show_default=True, type=click.IntRange(min=4),
               help="Landmarks per body.")
+@click.option("--cage", type=click.Choice(["artist", "fit"]), default="artist",
+              show_default=True, help="The template's cage: one tube per limb, or "
+                                      "cagekit.fit_cage.")
 @click.option("--cage-faces", default=196, show_default=True, type=click.IntRange(min=20),
-              help="Face budget of the template's cage (196 faces: 100 vertices).")
+              help="Face budget of --cage fit (196 faces: 100 vertices).")
 @click.option("--resolution", default=1.0, show_default=True,
               type=FiniteFloatRange(min=0.25, max=4.0), help="Mesh resolution of the bodies.")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0))
 @json_option
 @debug_option
-def main(out_dir, poses, train_poses, landmarks, cage_faces, resolution, seed, as_json):
+def main(out_dir, poses, train_poses, landmarks, cage, cage_faces, resolution, seed, as_json):
     """Write posed humanoids with ground truth to OUT_DIR (see the module docstring)."""
     summary = write(out_dir, poses=poses, train_poses=train_poses, seed=seed,
-                    landmarks=landmarks, cage_faces=cage_faces, resolution=resolution)
+                    landmarks=landmarks, cage=cage, cage_faces=cage_faces,
+                    resolution=resolution)
     if as_json:
         emit_json(summary)
     else:
         click.echo(f"wrote {out_dir}: template ({summary['template_vertices']} vertices, "
                    f"cage of {summary['cage_vertices']} vertices), {len(summary['bodies'])} "
-                   f"bodies, {poses} test poses, {train_poses} training poses")
+                   f"bodies, {len(summary['characters'])} novel characters, {poses} test "
+                   f"poses, {train_poses} training poses")
 
 
 if __name__ == "__main__":

@@ -1,26 +1,31 @@
-"""Deformation transfer to novel characters, against ground truth (issue 6).
+"""Deformation transfer to novel characters, against ground truth (issues 6 and 16).
 
-Three novel body shapes x 20 poses of :mod:`cagekit.datasets.humanoid`: the template's
-pose is transferred to each body, and the result is compared with the body posed directly
-with the same joint rotations (the ground truth). Methods, all in one run:
+The data set of :mod:`apps.humanoid_data` (written when missing): the template (T rest
+pose, its artist-style cage), bodies sharing the template's rest pose and mesh, and novel
+characters with rest poses, meshes and surface landmarks of their own (arms 15-60 degrees
+off the template's, legs apart, a torso turn, remeshed or open boxes; two labels missing,
+two misspelt). Ground truth: each character posed by the rig with the template's absolute
+joint rotations. Two directions:
 
-- ``rest``: no transfer (the body in rest pose);
-- ``nearest``: the template's displacement copied from its nearest vertex (after the same
-  box alignment the transfer uses), scaled like the transfer's offsets;
-- ``classical``: the per-pair cage fit of the template onto the pose, transferred through
-  the character's cage fitted by MVC consistency (:mod:`apps.deformation_transfer`);
-- ``learned``: the same, with the template's cage deformation predicted by a fixed-source
-  network (trained here with the documented command unless ``--model`` is given).
+- ``forward``: the example ``template rest -> pose i`` (20 poses), truth the character in
+  pose i;
+- ``reverse``: the example ``template in a rest-like pose -> template rest`` (the 5
+  ``apps.humanoid_data.REVERSE_POSES``, each with its skinned cage and posed landmarks),
+  truth the character in the template's T rest pose.
 
-Printed per method: mean vertex error against the ground truth relative to the body's
-height (%), dCotLap x1e3 (the metric of :mod:`cagekit.metrics`: the body at rest
-normalised on its own, the result mapped by the ground truth's normalisation), and
-seconds per pose (template cage + transfer; the character's cage fit is timed apart).
+Methods, all in one run: ``rest`` (no transfer), ``nearest`` (each vertex moves like its
+nearest template vertex after the box alignment, scaled), ``offsets`` (the paper's rule),
+``pose`` (the pose-aware rule), ``learned`` (the pose rule on the template cage predicted by
+a fixed-source network, trained here with the documented command unless ``--model`` is
+given; forward only: the network's source is the rest template). Printed per method and
+character: mean vertex error against the ground truth in % of the character's height,
+dCotLap x1e3 (the metric of :mod:`cagekit.metrics`), seconds per pose; the character's cage
+fit is listed apart with its checks.
 
 Usage::
 
     python benchmarks/bench_transfer.py [--data out/humanoid] [--model RUN_DIR]
-        [--train-steps 6000] [--json out/bench_transfer.json] [--grid PNG]
+        [--train-steps 6000] [--json out/bench_transfer.json] [--grid-dir DIR]
 """
 
 from __future__ import annotations
@@ -41,12 +46,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from apps import deformation_transfer as dt  # noqa: E402
 from apps import humanoid_data  # noqa: E402
 from cagekit import io  # noqa: E402
-from cagekit.frame import normalize
+from cagekit.errors import CageFitError  # noqa: E402
+from cagekit.frame import normalize  # noqa: E402
 from cagekit.landmarks import load_landmarks  # noqa: E402
 from cagekit.metrics import dcotlap  # noqa: E402
-from cagekit_learn.train import load_model  # noqa: E402
 
-METHODS = ("rest", "nearest", "classical", "learned")
+METHODS = ("rest", "nearest", "offsets", "pose", "learned")
+#: today's classical error on the bodies sharing the template's rest pose (issue 6)
+SAME_POSE_BASELINE = 2.193
 
 
 def train_command(data: Path, run_dir: Path, steps: int, seed: int) -> list[str]:
@@ -58,13 +65,9 @@ def train_command(data: Path, run_dir: Path, steps: int, seed: int) -> list[str]
             "--epochs", "1000", "--seed", str(seed), "-o", str(run_dir)]
 
 
-def nearest_vertices(template_v, character_v, alignment) -> np.ndarray:
-    """(n,) index of each character vertex's nearest template vertex (aligned frames)."""
-    return cKDTree(template_v).query(alignment.invert(character_v))[1]
-
-
-def nearest_copy(template_v, pose_v, character_v, alignment, nn) -> np.ndarray:
-    """Each character vertex moves like its nearest template vertex ``nn``."""
+def nearest_copy(template_v, pose_v, character_v, alignment) -> np.ndarray:
+    """Each character vertex moves like its nearest template vertex (aligned frames)."""
+    nn = cKDTree(template_v).query(alignment.invert(character_v))[1]
     return character_v + alignment.apply_vectors(pose_v[nn] - template_v[nn])
 
 
@@ -77,6 +80,70 @@ def scores(rest_v, faces, truth_v, out_v) -> tuple[float, float]:
     return err, dcotlap(src_n, faces, (out_v - c) / s) * 1e3
 
 
+def fit_summary(char, height) -> dict:
+    fit = char.fit
+    return {"seconds": fit.seconds, "iterations": fit.iterations, "repairs": fit.repairs,
+            "contacts": fit.contacts, "landmarks": len(char.match.labels),
+            "consistency": fit.consistency, "initial_consistency": fit.initial_consistency,
+            "max_landmark_error_pct": float(fit.landmark_errors.max() / height * 100),
+            "median_landmark_error_pct": float(np.median(fit.landmark_errors) / height * 100),
+            "valid": bool(fit.checks["valid"]), "outside": fit.checks["outside"],
+            "self_intersecting_faces": fit.checks["self_intersecting_faces"]}
+
+
+def run_direction(name, group, direction, template, cage, marks_t, character, marks_c,
+                  examples, truths, model, seed):
+    """Rows (one per example and method) and the fit summary of one character."""
+    (Vt, Ft), (cage_v, cage_f), (Vc, Fc) = template, cage, character
+    char = dt.fit_character(Vt, cage_v, cage_f, marks_t, Vc, Fc, marks_c)
+    height = float(np.ptp(Vc[:, 1]))
+    fitter = dt.classical_fitter(Vt, cage_v, cage_f)
+    rows, shown = [], []
+    for i, ((Vp, Fp), truth) in enumerate(zip(examples, truths)):
+        outs, seconds = {}, {}
+        t0 = time.perf_counter()
+        outs["rest"] = Vc
+        seconds["rest"] = 0.0
+        t0 = time.perf_counter()
+        outs["nearest"] = nearest_copy(Vt, Vp, Vc, char.fit.alignment)
+        seconds["nearest"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        deformed = dt.template_cage_classical((Vt, Ft), (cage_v, cage_f), (Vp, Fp),
+                                              seed=seed, fitter=fitter)
+        t_cage = time.perf_counter() - t0
+        for rule in ("offsets", "pose"):
+            t0 = time.perf_counter()
+            outs[rule] = dt.transfer(char, deformed, rule)
+            seconds[rule] = t_cage + time.perf_counter() - t0
+        if model is not None:
+            t0 = time.perf_counter()
+            learned = dt.template_cage_learned(model, Vt, cage_v, (Vp, Fp))
+            outs["learned"] = dt.transfer(char, learned, "pose")
+            seconds["learned"] = time.perf_counter() - t0
+        for method, X in outs.items():
+            err, dcl = scores(Vc, Fc, truth, X)
+            rows.append({"character": name, "group": group, "direction": direction,
+                         "example": i, "method": method, "error_pct": err,
+                         "dcotlap_x1e3": dcl, "seconds": seconds[method]})
+        if i < 5:
+            shown.append({"example": (Vp, Fp), "truth": (truth, Fc),
+                          "offsets": (outs["offsets"], Fc), "pose": (outs["pose"], Fc)})
+    return rows, fit_summary(char, height), shown, char
+
+
+def load_character(data, name):
+    V, F = io.load_mesh(data / "characters" / f"{name}.obj")
+    picked = data / "characters" / f"{name}.picked"
+    marks = load_landmarks(picked if picked.exists()
+                           else data / "characters" / f"{name}_landmarks.json")
+    return (V, F), marks
+
+
+def mean(rows, key="error_pct", **where) -> float:
+    sel = [r[key] for r in rows if all(r[k] == v for k, v in where.items())]
+    return float(np.mean(sel)) if sel else float("nan")
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--data", default="out/humanoid", type=Path)
@@ -84,140 +151,184 @@ def main(argv=None) -> dict:
                         help="A trained fixed-source run; default: train one in "
                              "DATA/run_<steps> (reused when there).")
     parser.add_argument("--train-steps", default=6000, type=int)
+    parser.add_argument("--no-learned", action="store_true")
     parser.add_argument("--poses", default=20, type=int)
-    parser.add_argument("--landmarks", default=80, type=int)
     parser.add_argument("--seed", default=0, type=int)
     parser.add_argument("--json", default=None)
-    parser.add_argument("--grid", default=None, help="PNG: template poses, ground truth, "
-                        "classical and learned transfers of the robot.")
+    parser.add_argument("--grid-dir", default=None, type=Path,
+                        help="Write transfer_<character>.png pictures here.")
     args = parser.parse_args(argv)
     data = args.data
     if not (data / "manifest.json").exists():
         t0 = time.perf_counter()
-        humanoid_data.write(data, poses=args.poses, landmarks=args.landmarks,
-                            seed=args.seed)
+        humanoid_data.write(data, seed=args.seed)
         print(f"wrote the data set to {data} in {time.perf_counter() - t0:.0f} s")
-    run_dir = args.model or data / f"run_{args.train_steps}"
-    train_seconds = None
-    if not (Path(run_dir) / "checkpoint.pt").exists():
-        command = train_command(data, Path(run_dir), args.train_steps, args.seed)
-        print("training:", " ".join(command[1:]))
-        t0 = time.perf_counter()
-        subprocess.run(command, check=True)
-        train_seconds = time.perf_counter() - t0
-    model = load_model(run_dir)[0]
-
-    Vt, Ft = io.load_mesh(data / "template.obj")
-    cage_v, cage_f = io.load_mesh(data / "template_cage.obj")
-    marks_t = load_landmarks(data / "template_landmarks.json")
     manifest = json.loads((data / "manifest.json").read_text())
-    bodies = manifest["bodies"]
-    poses = sorted((data / "poses").glob("pose_*.obj"))[:args.poses]
+    model, train_seconds, run_dir = None, None, None
+    if not args.no_learned:
+        from cagekit_learn.train import load_model
 
-    deformed, timing = {"classical": [], "learned": []}, {"classical": [], "learned": []}
-    pose_meshes = []
-    fitter = dt.classical_fitter(Vt, cage_v, cage_f)
-    for path in poses:
-        Vp, Fp = io.load_mesh(path)
-        pose_meshes.append((Vp, Fp))
-        t0 = time.perf_counter()
-        deformed["classical"].append(dt.template_cage_classical(
-            (Vt, Ft), (cage_v, cage_f), (Vp, Fp), seed=args.seed, fitter=fitter))
-        t1 = time.perf_counter()
-        deformed["learned"].append(dt.template_cage_learned(model, Vt, cage_v, (Vp, Fp)))
-        t2 = time.perf_counter()
-        timing["classical"].append(t1 - t0)
-        timing["learned"].append(t2 - t1)
-
-    rows, fits, grid = [], {}, None
-    for body in bodies:
-        Vc, Fc = io.load_mesh(data / "characters" / f"{body}.obj")
-        marks_c = load_landmarks(data / "characters" / f"{body}_landmarks.json")
-        char = dt.fit_character(Vt, cage_v, cage_f, marks_t, Vc, Fc, marks_c)
-        fit = char.fit
-        fits[body] = {"seconds": fit.seconds, "loss": fit.loss, "mvc_term": fit.mvc_term,
-                      "laplacian_term": fit.laplacian_term, "converged": fit.converged,
-                      "evaluations": fit.evaluations, "landmarks": len(char.match.labels),
-                      "max_landmark_error_pct": float(fit.landmark_errors.max()
-                                                      / np.ptp(Vc[:, 1]) * 100)}
-        nn = nearest_vertices(Vt, Vc, fit.alignment)
-        shown = {name: [] for name in ("truth", "classical", "learned")}
-        for i, (path, (Vp, _)) in enumerate(zip(poses, pose_meshes)):
-            truth, _ = io.load_mesh(data / "truth" / body / path.name)
-            outs = {}
+        run_dir = args.model or data / f"run_{args.train_steps}"
+        if not (Path(run_dir) / "checkpoint.pt").exists():
+            command = train_command(data, Path(run_dir), args.train_steps, args.seed)
+            print("training:", " ".join(command[1:]))
             t0 = time.perf_counter()
-            outs["rest"] = Vc
-            t1 = time.perf_counter()
-            outs["nearest"] = nearest_copy(Vt, Vp, Vc, fit.alignment, nn)
-            t2 = time.perf_counter()
-            extra = {"rest": t1 - t0, "nearest": t2 - t1}
-            for method in ("classical", "learned"):
-                t3 = time.perf_counter()
-                outs[method] = dt.transfer(char, deformed[method][i])
-                extra[method] = timing[method][i] + time.perf_counter() - t3
-            for method in METHODS:
-                err, dcl = scores(Vc, Fc, truth, outs[method])
-                rows.append({"body": body, "pose": path.stem, "method": method,
-                             "error_pct": err, "dcotlap_x1e3": dcl,
-                             "seconds": extra[method]})
-            if body == bodies[-1] and i < 5:
-                shown["truth"].append((truth, Fc))
-                shown["classical"].append((outs["classical"], Fc))
-                shown["learned"].append((outs["learned"], Fc))
-        if body == bodies[-1]:
-            grid = shown
+            subprocess.run(command, check=True)
+            train_seconds = time.perf_counter() - t0
+        model = load_model(run_dir)[0]
 
-    print(f"\n{len(bodies)} bodies x {len(poses)} poses, {manifest['landmarks']} landmarks, "
-          f"template cage {len(cage_v)} vertices / {len(cage_f)} faces; means")
-    print(f"{'method':<10} {'error % height':>15} {'dCotLap x1e3':>13} {'s/pose':>8}")
-    summary = {}
-    for method in METHODS:
-        sel = [r for r in rows if r["method"] == method]
-        summary[method] = {k: float(np.mean([r[k] for r in sel]))
-                           for k in ("error_pct", "dcotlap_x1e3", "seconds")}
-        s = summary[method]
-        print(f"{method:<10} {s['error_pct']:>15.3f} {s['dcotlap_x1e3']:>13.4f} "
-              f"{s['seconds']:>8.3f}")
-    print("\nper body (error % height: rest / nearest / classical / learned)")
-    for body in bodies:
-        errs = [np.mean([r["error_pct"] for r in rows
-                         if r["body"] == body and r["method"] == m]) for m in METHODS]
-        print(f"  {body:<8} " + " / ".join(f"{e:.3f}" for e in errs))
-    print("\ncage fit by MVC consistency (per body)")
-    for body, f in fits.items():
-        print(f"  {body:<8} {f['seconds']:.2f} s, {f['evaluations']} evaluations, "
-              f"L_consistency {f['loss']:.3g} (MVC {f['mvc_term']:.3g}, Laplacian "
-              f"{f['laplacian_term']:.3g}), < 1e-5: {f['converged']}, max landmark error "
-              f"{f['max_landmark_error_pct']:.2f}% of height")
-    rest = summary["rest"]["error_pct"]
-    checks = {
-        "classical_3x_below_rest": summary["classical"]["error_pct"] * 3 <= rest,
-        "learned_3x_below_rest": summary["learned"]["error_pct"] * 3 <= rest,
-        "classical_dcotlap_below_nearest":
-            summary["classical"]["dcotlap_x1e3"] < summary["nearest"]["dcotlap_x1e3"],
-        "learned_dcotlap_below_nearest":
-            summary["learned"]["dcotlap_x1e3"] < summary["nearest"]["dcotlap_x1e3"],
-        "fit_under_10s": max(f["seconds"] for f in fits.values()) < 10.0,
-    }
-    print("\ntargets: " + ", ".join(f"{k} {'met' if v else 'MISSED'}"
-                                    for k, v in checks.items()))
-    if args.grid and grid is not None:
-        dt.render_grid(args.grid, [pose_meshes[:5], grid["truth"], grid["classical"],
-                                   grid["learned"]],
-                       titles=[p.stem for p in poses[:5]],
-                       labels=["template (input pose)", f"{bodies[-1]}: ground truth",
-                               f"{bodies[-1]}: classical transfer",
-                               f"{bodies[-1]}: learned transfer"])
-        print(f"wrote {args.grid}")
-    result = {"summary": summary, "fits": fits, "checks": checks, "rows": rows,
-              "train_seconds": train_seconds, "model": str(run_dir),
-              "train_command": " ".join(train_command(data, Path(run_dir), args.train_steps,
-                                                      args.seed)[1:]),
+    template = io.load_mesh(data / "template.obj")
+    cage = io.load_mesh(data / "template_cage.obj")
+    marks_t = load_landmarks(data / "template_landmarks.json")
+    pose_paths = sorted((data / "poses").glob("pose_???.obj"))[:args.poses]
+    examples = [io.load_mesh(p) for p in pose_paths]
+    reverse = sorted((data / "reverse").glob("pose_??.obj"))
+
+    rows, fits, pictures = [], {}, {}
+    groups = [(b, "same rest pose") for b in manifest["bodies"]]
+    groups += [(c, "own rest pose") for c in manifest.get("characters", [])]
+    for name, group in groups:
+        character, marks_c = load_character(data, name)
+        truths = [io.load_mesh(data / "truth" / name / p.name)[0] for p in pose_paths]
+        try:
+            r, fit, shown, _ = run_direction(name, group, "forward", template, cage,
+                                             marks_t, character, marks_c, examples, truths,
+                                             model, args.seed)
+        except CageFitError as exc:
+            print(f"{name}: {exc}")
+            fits[(name, "forward")] = {"valid": False, "error": str(exc)}
+            continue
+        rows += r
+        fits[(name, "forward")] = fit
+        pictures[name] = shown
+        print(f"{name}: forward done (cage fit {fit['seconds']:.2f} s)", flush=True)
+        if group == "same rest pose":
+            continue
+        t_pose = io.load_mesh(data / "truth" / name / "t_pose.obj")[0]
+        for i, path in enumerate(reverse):
+            posed = io.load_mesh(path)
+            posed_cage = io.load_mesh(path.with_name(f"{path.stem}_cage.obj"))
+            marks_p = load_landmarks(path.with_name(f"{path.stem}_landmarks.json"))
+            try:
+                r, fit, shown, _ = run_direction(name, group, "reverse", posed, posed_cage,
+                                                 marks_p, character, marks_c, [template],
+                                                 [t_pose], None, args.seed)
+            except CageFitError as exc:
+                print(f"{name}: reverse {i}: {exc}")
+                fits[(name, f"reverse {i}")] = {"valid": False, "error": str(exc)}
+                continue
+            for row in r:
+                row["example"] = i
+            for picture in shown:
+                picture["example"] = posed
+            rows += r
+            fits[(name, f"reverse {i}")] = fit
+            if i < 5:
+                pictures.setdefault(f"{name}_reverse", []).extend(shown)
+        print(f"{name}: reverse done", flush=True)
+
+    report(rows, fits, manifest, len(pose_paths), len(reverse), model is not None)
+    checks = targets(rows, fits, groups)
+    if args.grid_dir:
+        draw(args.grid_dir, pictures, [p.stem for p in pose_paths[:5]])
+    result = {"rows": rows, "fits": {f"{k[0]} {k[1]}": v for k, v in fits.items()},
+              "checks": checks, "train_seconds": train_seconds,
+              "model": None if run_dir is None else str(run_dir),
+              "train_command": " ".join(train_command(data, Path(run_dir or "RUN"),
+                                                      args.train_steps, args.seed)[1:]),
               "cpu_count": os.cpu_count()}
     if args.json:
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)
         Path(args.json).write_text(json.dumps(result, indent=2))
     return result
+
+
+def report(rows, fits, manifest, poses, reverse, learned) -> None:
+    methods = [m for m in METHODS if learned or m != "learned"]
+    print(f"\ntemplate cage {manifest['cage']} ({manifest['cage_vertices']} vertices), "
+          f"{manifest['landmarks']} landmark labels, {poses} forward and {reverse} reverse "
+          "examples")
+    for direction in ("forward", "reverse"):
+        for group in ("same rest pose", "own rest pose"):
+            sel = [r for r in rows if r["direction"] == direction and r["group"] == group]
+            if not sel:
+                continue
+            names = list(dict.fromkeys(r["character"] for r in sel))
+            print(f"\n{direction}, {group}: error % height (dCotLap x1e3), mean over examples")
+            print(f"{'character':<12} " + " ".join(f"{m:>16}" for m in methods))
+            for name in names + ["mean"]:
+                where = {"direction": direction, "group": group}
+                if name != "mean":
+                    where["character"] = name
+                cells = []
+                for m in methods:
+                    e = mean(rows, method=m, **where)
+                    d = mean(rows, "dcotlap_x1e3", method=m, **where)
+                    cells.append("n/a" if np.isnan(e) else f"{e:.2f} ({d:.3f})")
+                print(f"{name:<12} " + " ".join(f"{c:>16}" for c in cells))
+    sec = {m: mean(rows, "seconds", method=m, direction="forward") for m in methods}
+    print("\nseconds per pose (forward): " + ", ".join(f"{m} {s:.3f}" for m, s in sec.items()))
+    print("\ncharacter cage fits")
+    for (name, direction), f in fits.items():
+        if "error" in f:
+            print(f"  {name:<12} {direction:<9} FAILED: {f['error']}")
+            continue
+        print(f"  {name:<12} {direction:<9} {f['seconds']:.2f} s, {f['iterations']} "
+              f"iterations, {f['repairs']} repairs, valid {f['valid']} (outside "
+              f"{100 * f['outside']:.2f}%, crossing faces {f['self_intersecting_faces']}), "
+              f"landmark error max {f['max_landmark_error_pct']:.2f}% / median "
+              f"{f['median_landmark_error_pct']:.2f}%, consistency "
+              f"{f['initial_consistency']:.3g} -> {f['consistency']:.3g}")
+
+
+def targets(rows, fits, groups) -> dict:
+    differ = [n for n, g in groups if g == "own rest pose" and n != "t_pose"]
+    same = [n for n, g in groups if g == "same rest pose"]
+    ratios, worst = {}, {}
+    for name in differ:
+        for direction in ("forward", "reverse"):
+            rest = mean(rows, method="rest", character=name, direction=direction)
+            pose = mean(rows, method="pose", character=name, direction=direction)
+            if np.isnan(pose):
+                continue
+            ratios[f"{name} {direction}"] = pose / rest
+            per = [(r["error_pct"], s["error_pct"]) for r in rows for s in rows
+                   if r["character"] == s["character"] == name
+                   and r["direction"] == s["direction"] == direction
+                   and r["example"] == s["example"] and r["method"] == "pose"
+                   and s["method"] == "rest"]
+            worst[f"{name} {direction}"] = max(p / q for p, q in per)
+    same_pose = mean([r for r in rows if r["character"] in same], method="pose")
+    checks = {
+        "pose <= 1/3 of rest, every differing character": all(v <= 1 / 3
+                                                              for v in ratios.values()),
+        "pose <= 1/5 of rest (aim)": all(v <= 1 / 5 for v in ratios.values()),
+        "worst example <= 1/2 of rest": all(v <= 1 / 2 for v in worst.values()),
+        f"same rest pose: pose <= {SAME_POSE_BASELINE}%": same_pose <= SAME_POSE_BASELINE,
+        "every character cage valid": all(f["valid"] for f in fits.values()),
+        "cage fit <= 10 s": max(f.get("seconds", np.inf) for f in fits.values()) <= 10.0,
+    }
+    print("\npose / rest error ratio: " + ", ".join(f"{k} {v:.3f}" for k, v in ratios.items()))
+    print("worst example ratio: " + ", ".join(f"{k} {v:.3f}" for k, v in worst.items()))
+    print("targets: " + "; ".join(f"{k}: {'met' if v else 'MISSED'}" for k, v in checks.items()))
+    return {**checks, "ratios": ratios, "worst": worst, "same_pose_error": same_pose}
+
+
+def draw(folder, pictures, titles) -> None:
+    folder.mkdir(parents=True, exist_ok=True)
+    for name, shown in pictures.items():
+        if not shown:
+            continue
+        path = folder / f"transfer_{name}.png"
+        reverse = name.endswith("_reverse")
+        dt.render_grid(path, [[s["example"] for s in shown], [s["truth"] for s in shown],
+                              [s["offsets"] for s in shown], [s["pose"] for s in shown]],
+                       titles=None if reverse else titles[:len(shown)],
+                       labels=["template example" + (" (source pose; target: rest)"
+                                                     if reverse else " (target pose)"),
+                               "ground truth", "offsets rule (the paper's)",
+                               "pose-aware rule"])
+        print(f"wrote {path}")
 
 
 if __name__ == "__main__":

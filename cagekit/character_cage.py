@@ -2,27 +2,29 @@
 
 The cage ``C_s`` encloses the template; the character shares some landmark labels with it.
 The character's cage ``C_c`` keeps ``C_s``'s faces and satisfies, as far as it can, the
-landmark reproduction ``sum_j phi_j(p; C_s) c_j = q`` (each template landmark, written in
-the template's mean value coordinates, lands on its character landmark; this is what the
-paper's MVC consistency ``phi(q; C_c) = phi(p; C_s)`` implies, and it is linear in
-``C_c``). Three terms, in the template's frame (the character mapped back by
-``alignment``), minimised by local/global iterations (Sorkine & Alexa 2007, with a scale per vertex):
+landmark reproduction ``sum_j phi_j(p; C_s) c_j = q``: each template landmark, written in
+the template's mean value coordinates, lands on its character landmark. The paper's MVC
+consistency ``phi(q; C_c) = phi(p; C_s)`` implies it, and unlike that one it is linear in
+``C_c``, so no torch and no MVC derivative is needed. In the template's frame (the character
+mapped back by ``alignment``), local/global iterations (Sorkine & Alexa 2007) minimise
 
-- as-similar-as-possible on the cage's edges (a scaled rotation per vertex, uniform edge
-  weights): limbs turn and thicken, they do not shear, so a character whose arms hang
-  lower than the template's gets a cage whose arms hang too;
+- as-similar-as-possible on the cage's edges (a rotation and a bounded scale per vertex,
+  uniform edge weights): limbs turn and thicken, they do not shear, so a character whose
+  arms hang lower than the template's gets a cage whose arms hang too;
 - the landmark reproduction, weight ``landmark_weight``;
-- enclosure contacts, after a first fit to the landmarks alone: every character vertex
-  found outside the cage (winding number below 0.5) pulls its nearest cage point to
-  ``margin`` beyond itself, and keeps pulling (a contact, so the face stays out).
+- enclosure contacts, after a first fit to the landmarks alone (contacts taken while the
+  limbs still swing would pull the wrong part of the cage, a hand's faces to the hip):
+  every character vertex found outside (winding number below 0.5) pulls its nearest cage
+  point to ``margin`` beyond itself, for as long as it is outside or less than ``margin``
+  inside.
 
-Then the checks: a closed cage by construction (the template's faces), no
-self-intersection (:func:`cagekit.cage.self_intersecting_faces`), every character vertex
-inside (:func:`cagekit.cage.winding_numbers` >= 0.5). Self-intersecting faces are repaired
-by pulling their vertices towards the character's surface (``margin`` above it) and
-iterating again; a cage still invalid after ``repair_rounds`` raises
-:class:`~cagekit.errors.CageFitError` naming what failed. The paper's ``L_consistency``
-(MVC term) is reported beside the landmark errors. See docs/architecture.md.
+Then the checks (:func:`cage_checks`): closed by construction (the template's faces), no
+self-intersection, every character vertex inside. Each repair round smooths the
+neighbourhood of the crossing faces (umbrella rows, weight doubling) and raises the contact
+weight while vertices are outside, then iterates again; a cage still invalid after
+``repair_rounds`` raises :class:`~cagekit.errors.CageFitError` naming what failed. The
+paper's ``L_consistency`` (MVC term) is reported beside the landmark errors. See
+docs/architecture.md.
 """
 
 from __future__ import annotations
@@ -45,9 +47,11 @@ __all__ = ["CharacterCageFit", "fit_character_cage", "cage_checks", "LANDMARK_WE
 LANDMARK_WEIGHT = 4.0
 #: how far outside a character vertex its cage is pushed, in cage diagonals
 MARGIN = 0.002
-#: weight of one enclosure contact (as a landmark)
+#: starting weight of one enclosure contact (x4 each repair round that finds points outside)
 CONTACT_WEIGHT = 4.0
+#: bounds of the per-vertex scale of the as-similar-as-possible step
 SCALE_RANGE = (0.67, 1.5)
+#: starting weight of the smoothing rows of the repair (x2 each round)
 SMOOTH_WEIGHT = 0.5
 
 
@@ -222,22 +226,8 @@ def _grow(vertices, edges) -> np.ndarray:
     return np.union1d(vertices, edges[touch].ravel())
 
 
-def _surface_targets(vertices, surface_v, surface_f, margin):
-    """Each cage vertex's nearest point on the character, ``margin`` towards the vertex."""
-    import igl
-    from scipy.spatial import cKDTree
-
-    if surface_f is not None and len(surface_f):
-        _, _, nearest = igl.point_mesh_squared_distance(vertices, surface_v, surface_f)
-    else:
-        nearest = surface_v[cKDTree(surface_v).query(vertices)[1]]
-    away = vertices - nearest
-    length = np.maximum(np.linalg.norm(away, axis=1, keepdims=True), 1e-300)
-    return nearest + away / length * np.minimum(margin, length)
-
-
-def fit_character_cage(cage_v, cage_f, source_landmarks, target_landmarks, character_v,
-                       character_f=None, *, alignment: Similarity,
+def fit_character_cage(cage_v, cage_f, source_landmarks, target_landmarks, character_v, *,
+                       alignment: Similarity,
                        landmark_weight: float = LANDMARK_WEIGHT, margin: float = MARGIN,
                        iterations: int = 40, repair_rounds: int = 6) -> CharacterCageFit:
     """Fit the template cage to a character by landmarks, enclosing it, without folds.
@@ -250,9 +240,8 @@ def fit_character_cage(cage_v, cage_f, source_landmarks, target_landmarks, chara
     source_landmarks, target_landmarks : (L, 3) array_like of float
         Matching landmarks ``p`` on the template and ``q`` on the character; L >= 4.
     character_v : (n, 3) array_like of float
-        The character's vertices (any number of parts, open or closed).
-    character_f : (f, 3) array_like of int, optional
-        Its faces, for the repair's nearest surface points (vertices only without).
+        The character's vertices (any number of parts, open or closed: only the vertices
+        must be enclosed).
     alignment : Similarity
         Template frame -> character frame
         (:func:`cagekit.alignment.box_alignment`, :func:`~cagekit.alignment.similarity_alignment`).
@@ -300,7 +289,6 @@ def fit_character_cage(cage_v, cage_f, source_landmarks, target_landmarks, chara
     Cs = as_vertices(cage_v, "cage_v")
     F = check_cage(Cs, cage_f)
     X = alignment.invert(as_vertices(character_v, "character_v"))
-    Fc = None if character_f is None else np.asarray(character_f, dtype=np.int64)
     Qa = alignment.invert(Q)
     phi = bind(P, Cs, F).weights
     gap = margin * float(np.linalg.norm(np.ptp(Cs, axis=0)))
@@ -344,10 +332,6 @@ def fit_character_cage(cage_v, cage_f, source_landmarks, target_landmarks, chara
             contact_weight *= 4.0
         C, contacts = run(C, contacts)
         checks = cage_checks(X, C, F)
-    global _LAST, _LASTC
-    _LAST = alignment.apply(C)
-
-    _LASTC = (contacts, contact_weight, X, C)
     if not checks["valid"]:
         raise CageFitError("no valid character cage: the fitted cage "
                            + "; it ".join(checks["problems"])
@@ -358,7 +342,7 @@ def fit_character_cage(cage_v, cage_f, source_landmarks, target_landmarks, chara
         cage_v=cage_out, cage_f=F, alignment=alignment,
         landmark_errors=np.linalg.norm(phi @ cage_out - Q, axis=1),
         consistency=consistency, initial_consistency=_consistency(phi, Qa, Cs, F),
-        checks=checks, iterations=iterations * (repairs + 1), repairs=repairs,
+        checks=checks, iterations=iterations * (repairs + 2), repairs=repairs,
         contacts=len(contacts), seconds=time.perf_counter() - start)
 
 

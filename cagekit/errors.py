@@ -48,7 +48,8 @@ class CageError(InputError):
 
 
 class CageFitError(InputError):
-    """No valid cage could be fitted to the given shape (the message says what failed)."""
+    """No cage meeting every guarantee could be built (``cagekit.fit_cage``, the character
+    cage of a transfer); the message says what failed."""
 
 
 class CagekitWarning(UserWarning):

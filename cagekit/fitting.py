@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from cagekit.cage import self_intersecting_faces
-from cagekit.errors import InputError
+from cagekit.errors import CageFitError, InputError
 from cagekit.geometry import as_shape
 
 __all__ = ["fit_cage", "cage_report", "template_cage", "wrap_input", "CageFitError", "METHODS"]
@@ -33,10 +33,6 @@ METHODS = ("wrap", "template")
 
 #: faces of :func:`template_cage` (the paper's icosphere)
 TEMPLATE_FACES = 80
-
-
-class CageFitError(InputError):
-    """No cage meeting every guarantee could be built for this input."""
 
 
 def template_cage():

@@ -24,8 +24,8 @@ import numpy as np
 from cagekit.errors import InputError, LandmarkFileError
 from cagekit.files import atomic_output, extension, one_line, read_text
 
-__all__ = ["SUPPORTED_LANDMARK_EXTENSIONS", "LandmarkMatch", "load_landmarks",
-           "match_landmarks", "save_landmarks"]
+__all__ = ["SUPPORTED_LANDMARK_EXTENSIONS", "LandmarkMatch", "SurfacePoint", "load_landmarks",
+           "match_landmarks", "save_landmarks", "save_picked"]
 
 SUPPORTED_LANDMARK_EXTENSIONS = (".picked", ".json", ".csv")
 """Extensions :func:`load_landmarks` reads (:func:`save_landmarks` writes JSON and CSV)."""
@@ -250,6 +250,68 @@ def save_landmarks(path: str | os.PathLike, landmarks: Mapping[str, object]) -> 
             writer = csv.writer(fh, lineterminator="\n")
             writer.writerow(["label", "x", "y", "z"])
             writer.writerows([label, *map(repr, xyz)] for label, xyz in items)
+
+
+@dataclass(frozen=True)
+class SurfacePoint:
+    """A labelled point on a mesh's surface, as a Thea ``.picked`` row names it.
+
+    Attributes
+    ----------
+    label : str
+    face : int
+        Index of the face the point lies on.
+    barycentric : (3,) tuple of float
+        Its weights on the face's three vertices (summing to 1).
+    position : (3,) tuple of float
+        ``barycentric @ vertices[faces[face]]``.
+    """
+
+    label: str
+    face: int
+    barycentric: tuple
+    position: tuple
+
+
+def save_picked(path: str | os.PathLike, points) -> None:
+    """Write surface points atomically as a Thea ``.picked`` file (9 columns).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Destination ending in ``.picked``.
+    points : sequence of SurfacePoint
+        Labels without whitespace (a ``.picked`` row splits on it), finite values.
+
+    Raises
+    ------
+    InputError
+        Another extension, no points, a label with whitespace, non-finite values.
+
+    Examples
+    --------
+    >>> p = SurfacePoint("nose", 12, (0.5, 0.25, 0.25), (0.0, 1.6, 0.1))
+    >>> save_picked("marks.picked", [p])  # doctest: +SKIP
+    >>> load_landmarks("marks.picked")["nose"]  # doctest: +SKIP
+    array([0. , 1.6, 0.1])
+    """
+    if extension(path) != ".picked":
+        raise InputError("save_picked writes .picked files only", path)
+    points = list(points)
+    if not points:
+        raise InputError("no landmarks to write", path)
+    lines = [str(len(points))]
+    for p in points:
+        values = np.asarray([*p.barycentric, *p.position], dtype=np.float64)
+        if (not p.label or any(c.isspace() for c in p.label) or values.shape != (6,)
+                or not np.isfinite(values).all()):
+            raise InputError(f"landmark {p.label!r}: a label without spaces, 3 barycentric "
+                             "and 3 finite coordinates are needed", path)
+        numbers = " ".join(repr(float(v)) for v in values[:3])
+        xyz = " ".join(repr(float(v)) for v in values[3:])
+        lines.append(f"Picked {int(p.face)} {numbers} {p.label} {xyz}")
+    with atomic_output(path) as tmp, open(tmp, "w", encoding="utf-8", newline="") as fh:
+        fh.write("\n".join(lines) + "\n")
 
 
 @dataclass(frozen=True)

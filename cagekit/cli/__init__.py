@@ -10,7 +10,7 @@ from __future__ import annotations
 import click
 
 from cagekit import __version__
-from cagekit.cli import apply, deform, evaluate, fit_cage, render, synth, train
+from cagekit.cli import apply, deform, evaluate, fit_cage, render, synth, train, transfer
 from cagekit.cli.common import Group
 
 __all__ = ["main"]
@@ -30,5 +30,5 @@ def main(debug: bool) -> None:
 
 for _module, _name in ((apply, "apply"), (evaluate, "eval_"), (render, "render"),
                        (fit_cage, "fit_cage"), (synth, "synth"), (deform, "deform"),
-                       (train, "train")):
+                       (train, "train"), (transfer, "transfer")):
     main.add_command(getattr(_module, _name))

@@ -34,12 +34,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from cagekit.datasets import humanoid
+from cagekit.landmarks import SurfacePoint
 
-__all__ = ["CHARACTERS", "MISSING", "MISSPELT", "Character", "Landmark", "character",
+__all__ = ["CHARACTERS", "FINGERS", "MISSING", "MISSPELT", "Character", "character",
            "rest_pose", "surface_landmarks"]
 
+#: the rig's finger names (joints ``{side}_{finger}{1,2,3}``)
+FINGERS = ("thumb", "index", "middle", "ring", "pinky")
 #: labels left out of every character's landmark file
-MISSING = ("l_ear", "r_pinky_tip")
+MISSING = ("r_ear", "l_ring_tip")
 #: labels misspelt in every character's landmark file (true -> written)
 MISSPELT = {"nose_tip": "nose-tip", "l_heel": "L_heel"}
 
@@ -95,16 +98,6 @@ CHARACTERS: dict[str, tuple] = {
 }
 
 
-@dataclass(frozen=True)
-class Landmark:
-    """A point on a mesh's surface, as a Thea ``.picked`` row names it."""
-
-    label: str
-    face: int
-    barycentric: tuple[float, float, float]
-    position: tuple[float, float, float]
-
-
 @dataclass
 class Character:
     """A novel character in its own rest pose, with the rig that poses it.
@@ -117,7 +110,7 @@ class Character:
     faces : (m, 3) int64
     rest_pose : dict[str, (3, 3) float64]
         Absolute joint rotations of the rest pose.
-    landmarks : list of Landmark
+    landmarks : list of cagekit.landmarks.SurfacePoint
         On the rest-pose surface, with :data:`MISSING` left out and :data:`MISSPELT`
         misspelt.
     """
@@ -176,7 +169,7 @@ def _box(points, subdivisions: int = 5):
 def _boxes(rig):
     """One open box per rig part, and each box vertex's joint (its part's heaviest)."""
     V, F, joint, start = [], [], [], 0
-    for part, rows in rig.parts.items():
+    for rows in rig.parts.values():
         points = rig.vertices[rows]
         bv, bf = _box(points)
         main = int(np.argmax(rig.weights[rows].sum(axis=0)))
@@ -195,7 +188,7 @@ def _rigid_pose(rig, joint):
     return pose
 
 
-def surface_landmarks(vertices, faces, anchors, labels, seed: int = 0) -> list[Landmark]:
+def surface_landmarks(vertices, faces, anchors, labels, seed: int = 0) -> list[SurfacePoint]:
     """Points on a surface near given anchor points, as (face, barycentric) rows.
 
     Parameters
@@ -210,7 +203,7 @@ def surface_landmarks(vertices, faces, anchors, labels, seed: int = 0) -> list[L
 
     Returns
     -------
-    list of Landmark
+    list of cagekit.landmarks.SurfacePoint
     """
     import igl
 
@@ -225,17 +218,17 @@ def surface_landmarks(vertices, faces, anchors, labels, seed: int = 0) -> list[L
         others = [i for i in range(3) if i != near]
         b[others] = rng.uniform(0.15, 0.35, 2)
         b[near] = 1.0 - b[others].sum()
-        out.append(Landmark(label, int(f), tuple(map(float, b)), tuple(map(float, b @ tri))))
+        out.append(SurfacePoint(label, int(f), tuple(map(float, b)), tuple(map(float, b @ tri))))
     return out
 
 
-def _labelled(marks: list[Landmark]) -> list[Landmark]:
+def _labelled(marks: list[SurfacePoint]) -> list[SurfacePoint]:
     """Drop :data:`MISSING`, misspell :data:`MISSPELT`."""
     out = []
     for m in marks:
         if m.label in MISSING:
             continue
-        out.append(Landmark(MISSPELT.get(m.label, m.label), m.face, m.barycentric,
+        out.append(SurfacePoint(MISSPELT.get(m.label, m.label), m.face, m.barycentric,
                             m.position))
     return out
 

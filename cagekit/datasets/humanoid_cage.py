@@ -15,7 +15,7 @@ Examples
 >>> r = humanoid.rig("template", resolution=0.5)
 >>> v, f = humanoid_cage(r)
 >>> len(v), len(f)
-(120, 236)
+(130, 256)
 """
 
 from __future__ import annotations

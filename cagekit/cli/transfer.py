@@ -1,0 +1,264 @@
+"""``cagekit transfer``: carry a template's poses to a novel character given landmarks.
+
+The work is :mod:`apps.deformation_transfer`; this module reads and checks every input
+before any work, writes the outputs atomically at the end and reports. torch is imported
+only with ``--model``.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+import warnings
+from pathlib import Path
+
+import click
+
+from cagekit.cli.common import (
+    debug_option,
+    emit_json,
+    json_option,
+    progress_bar,
+    same_file,
+    start_command,
+)
+from cagekit.errors import CagekitWarning, InputError
+
+#: the TEMPLATE_CAGE argument that fits one (cagekit.fit_cage)
+AUTO = "auto"
+
+
+@click.command(name="transfer",
+               short_help="Carry a template's poses to a novel character (landmarks).")
+@click.argument("template", type=click.Path(dir_okay=False))
+@click.argument("template_cage", type=click.Path(dir_okay=False))
+@click.argument("template_landmarks", type=click.Path(dir_okay=False))
+@click.argument("character", type=click.Path(dir_okay=False))
+@click.argument("character_landmarks", type=click.Path(dir_okay=False))
+@click.argument("poses", nargs=-1, required=True, type=click.Path())
+@click.option("-o", "--output", "out_dir", required=True, type=click.Path(file_okay=False),
+              help="Folder for the deformed characters, character_cage.obj and "
+                   "report.json (created if missing).")
+@click.option("--rule", type=click.Choice(["pose", "offsets"]), default="pose",
+              show_default=True,
+              help="pose: the template's joint rotations, whatever the character's rest "
+                   "pose; offsets: the paper's C_c + A (C_st - C_s).")
+@click.option("--model", "model_path", type=click.Path(), default=None,
+              help="A fixed-source run (folder or checkpoint.pt) predicts the template's "
+                   "cage deformation instead of the per-pair fit.")
+@click.option("--align", type=click.Choice(["box", "similarity"]), default="box",
+              show_default=True, help="How the two rest poses are aligned before the fit.")
+@click.option("--cage-faces", default=200, show_default=True,
+              type=click.IntRange(min=80, max=100_000),
+              help="Face budget when TEMPLATE_CAGE is 'auto'.")
+@click.option("--grid", "grid_path", type=click.Path(dir_okay=False), default=None,
+              help="Also write a PNG: template poses above, transferred character below.")
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0))
+@json_option
+@debug_option
+@click.pass_context
+def transfer(ctx, template, template_cage, template_landmarks, character,
+             character_landmarks, poses, out_dir, rule, model_path, align, cage_faces,
+             grid_path, seed, as_json):
+    """Transfer the TEMPLATE's POSES to a novel CHARACTER given matching landmarks.
+
+    TEMPLATE and CHARACTER are meshes in rest pose (any format cagekit reads, any number
+    of parts, open or closed); TEMPLATE_CAGE encloses TEMPLATE, or is 'auto' to fit one.
+    The landmark files (.picked with 9 or 10 columns, .json or .csv) name points on each,
+    matched by label; labels in one file only are reported. POSE is a mesh of the
+    template in a new pose, or a folder of them. The character's cage is checked
+    (closed, no self-intersection, every vertex inside); when no valid cage can be
+    fitted the command exits with status 2 and writes nothing.
+
+    \b
+    Example:
+      cagekit transfer template.obj template_cage.obj template.json \\
+          robot.obj robot.picked poses/ -o out/robot --grid out/robot.png
+    """
+    from apps import deformation_transfer as dt
+
+    start_command(ctx)
+    start = time.perf_counter()
+    pose_paths = _pose_paths(poses)
+    names = _output_names(pose_paths)
+    out = Path(out_dir)
+    inputs = [template, template_landmarks, character, character_landmarks,
+              *map(str, pose_paths)] + ([] if template_cage == AUTO else [template_cage])
+    _check_outputs(out, names, grid_path, inputs)
+    loaded = _load(template, template_cage, template_landmarks, character,
+                   character_landmarks, pose_paths, model_path, cage_faces, seed)
+    t_loaded = time.perf_counter()
+    (Vt, Ft), (cage_v, cage_f), marks_t, (Vc, Fc), marks_c, pose_meshes, model = loaded
+    char = dt.fit_character(Vt, cage_v, cage_f, marks_t, Vc, Fc, marks_c, align=align,
+                            template_name=template_landmarks,
+                            character_name=character_landmarks)
+    unmatched = char.match.unmatched(template_landmarks, character_landmarks)
+    if unmatched:
+        warnings.warn(CagekitWarning(unmatched), stacklevel=1)
+    t_fitted = time.perf_counter()
+    results = _transfer_poses(char, (Vt, Ft), (cage_v, cage_f), pose_meshes, model, rule,
+                              seed)
+    rows = _write(out, char, pose_paths, names, results, pose_meshes, grid_path)
+    seconds = {"load": t_loaded - start, "fit": t_fitted - t_loaded,
+               "transfer": time.perf_counter() - t_fitted}
+    report = _report(out, char, rows, seconds, start, template, template_cage, character,
+                     model, rule, align, grid_path)
+    if as_json:
+        emit_json(report)
+    else:
+        fit = char.fit
+        click.echo(f"wrote {len(rows)} pose(s), character_cage.obj and report.json to "
+                   f"{out}; character cage valid ({fit.repairs} repair round(s)), "
+                   f"largest landmark error {fit.landmark_errors.max():.3g}")
+
+
+def _pose_paths(poses) -> list[Path]:
+    from cagekit_learn.data import find_meshes
+
+    paths: list[Path] = []
+    for given in poses:
+        path = Path(given)
+        if path.is_dir():
+            found = find_meshes(path)
+            if not found:
+                raise InputError("holds no mesh files", path)
+            paths.extend(found)
+        else:
+            paths.append(path)
+    return paths
+
+
+def _output_names(paths) -> list[str]:
+    names, seen = [], {}
+    for path in paths:
+        name = f"{path.stem}.obj"
+        if name in seen:
+            raise InputError(f"two poses would both be written as {name} ({seen[name]} and "
+                             f"{path}): rename one", path)
+        seen[name] = path
+        names.append(name)
+    return names
+
+
+def _check_outputs(out, names, grid_path, inputs):
+    """Refuse outputs that are inputs and a picture path that cannot be written."""
+    outputs = [out / name for name in names] + [out / "character_cage.obj",
+                                                 out / "report.json"]
+    if grid_path is not None:
+        outputs.append(Path(grid_path))
+        if not Path(grid_path).resolve().parent.is_dir():
+            raise InputError("the picture's folder does not exist", grid_path)
+        if Path(grid_path).suffix.lower() != ".png":
+            raise InputError("the picture is written as PNG: give a .png file name",
+                             grid_path)
+    for output in outputs:
+        for given in inputs:
+            if same_file(str(output), given):
+                raise InputError(f"refusing to overwrite the input file {given}; choose "
+                                 "another output folder", output)
+
+
+def _load(template, template_cage, template_landmarks, character, character_landmarks,
+          pose_paths, model_path, cage_faces, seed):
+    """Every input, read and checked before any work (the model too, when given)."""
+    from apps.deformation_transfer import check_model
+    from cagekit import io
+    from cagekit.cage import check_cage
+    from cagekit.coords.binding import warn_outside
+    from cagekit.landmarks import load_landmarks
+
+    Vt, Ft = io.load_mesh(template)
+    marks_t = load_landmarks(template_landmarks)
+    Vc, Fc = io.load_mesh(character)
+    marks_c = load_landmarks(character_landmarks)
+    pose_meshes = [io.load_mesh(path) for path in pose_paths]
+    if template_cage == AUTO:
+        from cagekit.fitting import fit_cage
+
+        try:
+            cage_v, cage_f = fit_cage(Vt, Ft, faces=cage_faces, seed=seed)
+        except InputError as exc:
+            raise InputError(f"cannot fit a cage to the template: {exc.problem}",
+                             template) from None
+    else:
+        cage_v, cage_f = io.load_mesh(template_cage)
+        cage_f = check_cage(cage_v, cage_f, name=template_cage)
+        warn_outside(Vt, cage_v, cage_f, shape=template, cage=template_cage)
+    model = None
+    if model_path:
+        from cagekit_learn.train import load_model
+
+        model = load_model(model_path)[0]
+        check_model(model, Vt, cage_v, model_path)
+    return ((Vt, Ft), (cage_v, cage_f), marks_t, (Vc, Fc), marks_c, pose_meshes, model)
+
+
+def _transfer_poses(char, template, template_cage, pose_meshes, model, rule, seed):
+    """(transferred vertices, seconds) per pose, classical or learned."""
+    from apps import deformation_transfer as dt
+
+    (Vt, Ft), (cage_v, cage_f) = template, template_cage
+    fitter = dt.classical_fitter(Vt, cage_v, cage_f) if model is None else None
+    results = []
+    with progress_bar("poses", "pose", total=len(pose_meshes)) as bar:
+        for (Vp, Fp) in pose_meshes:
+            t0 = time.perf_counter()
+            if model is None:
+                deformed = dt.template_cage_classical((Vt, Ft), (cage_v, cage_f), (Vp, Fp),
+                                                      seed=seed, fitter=fitter)
+            else:
+                deformed = dt.template_cage_learned(model, Vt, cage_v, (Vp, Fp))
+            results.append((dt.transfer(char, deformed, rule), time.perf_counter() - t0))
+            bar.update(1)
+    return results
+
+
+def _write(out, char, pose_paths, names, results, pose_meshes, grid_path):
+    """The transferred poses, the character's cage and the picture; a row per pose."""
+    from apps.deformation_transfer import render_grid
+    from cagekit import io
+    from cagekit.files import output_folder
+
+    with output_folder(out):
+        rows = []
+        for path, name, (X, seconds) in zip(pose_paths, names, results):
+            io.save_mesh(out / name, X, char.faces)
+            rows.append({"pose": str(path), "output": str(out / name), "seconds": seconds})
+        io.save_mesh(out / "character_cage.obj", char.cage_v, char.cage_f)
+        if grid_path is not None:
+            transferred = [(X, char.faces) for X, _ in results[:8]]
+            render_grid(grid_path, [pose_meshes[:8], transferred],
+                        titles=[Path(p).stem for p in pose_paths[:8]],
+                        labels=["template", "transferred character"])
+    return rows
+
+
+def _report(out, char, rows, seconds, start, template, template_cage, character, model,
+            rule, align, grid_path) -> dict:
+    """Write report.json and return it."""
+    from cagekit.files import atomic_output
+
+    fit = char.fit
+    report = {
+        "template": template, "template_cage": template_cage, "character": character,
+        "mode": "learned" if model is not None else "classical", "rule": rule,
+        "align": align,
+        "landmarks": {"matched": len(char.match.labels),
+                      "template_only": char.match.source_only,
+                      "character_only": char.match.target_only},
+        "character_cage_fit": {
+            "consistency": fit.consistency, "initial_consistency": fit.initial_consistency,
+            "iterations": fit.iterations, "repairs": fit.repairs,
+            "contacts": fit.contacts, "seconds": fit.seconds,
+            "alignment": fit.alignment.to_dict()},
+        "landmark_errors": dict(zip(char.match.labels, fit.landmark_errors.tolist())),
+        "character_cage": {k: v for k, v in fit.checks.items()},
+        "poses": rows,
+        "seconds": {**seconds, "total": time.perf_counter() - start},
+        "outputs": {"cage": str(out / "character_cage.obj"),
+                    "report": str(out / "report.json"), "grid": grid_path},
+    }
+    with atomic_output(out / "report.json") as tmp, open(tmp, "w") as fh:
+        json.dump(report, fh, indent=2, allow_nan=False)
+        fh.write("\n")
+    return report
