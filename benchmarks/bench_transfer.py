@@ -152,6 +152,8 @@ def main(argv=None) -> dict:
                              "DATA/run_<steps> (reused when there).")
     parser.add_argument("--train-steps", default=6000, type=int)
     parser.add_argument("--no-learned", action="store_true")
+    parser.add_argument("--no-real", action="store_true",
+                        help="Skip the real characters (sweethome3d-furniture).")
     parser.add_argument("--poses", default=20, type=int)
     parser.add_argument("--seed", default=0, type=int)
     parser.add_argument("--json", default=None)
@@ -229,9 +231,12 @@ def main(argv=None) -> dict:
 
     report(rows, fits, manifest, len(pose_paths), len(reverse), model is not None)
     checks = targets(rows, fits, groups)
+    real = None if args.no_real else real_characters(template, cage, marks_t, examples[:5],
+                                                     args.grid_dir)
     if args.grid_dir:
         draw(args.grid_dir, pictures, [p.stem for p in pose_paths[:5]])
     result = {"rows": rows, "fits": {f"{k[0]} {k[1]}": v for k, v in fits.items()},
+              "real": real,
               "checks": checks, "train_seconds": train_seconds,
               "model": None if run_dir is None else str(run_dir),
               "train_command": " ".join(train_command(data, Path(run_dir or "RUN"),
@@ -312,6 +317,66 @@ def targets(rows, fits, groups) -> dict:
     print("worst example ratio: " + ", ".join(f"{k} {v:.3f}" for k, v in worst.items()))
     print("targets: " + "; ".join(f"{k}: {'met' if v else 'MISSED'}" for k, v in checks.items()))
     return {**checks, "ratios": ratios, "worst": worst, "same_pose_error": same_pose}
+
+
+def real_characters(template, cage, marks_t, examples, folder) -> dict:
+    """The three real characters of data/characters/: the cage fit, and 5 poses when it
+    is valid (a picture either way)."""
+    from cagekit.cage import self_intersecting_faces
+    from cagekit.datasets.sweethome3d import models
+    from cagekit.errors import InputError
+    from cagekit.render import render_grid
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "data"))
+    from place_character_landmarks import CHARACTERS
+
+    root = Path(__file__).resolve().parents[1] / "data" / "characters"
+    try:
+        found = {os.path.splitext(os.path.basename(m.path))[0]: m for m in models()}
+    except InputError as exc:
+        print(f"\nreal characters skipped: {exc}")
+        return {}
+    (Vt, _), (cage_v, cage_f) = template, cage
+    fitter = dt.classical_fitter(Vt, cage_v, cage_f)
+    deformed = [fitter(V) for V, _ in examples]
+    out = {}
+    print("\nreal characters (sweethome3d-furniture)")
+    for _, stem, name in CHARACTERS:
+        model = found[stem]
+        V, F = io.load_mesh(model.path)
+        marks = load_landmarks(root / f"{name}.picked")
+        t0 = time.perf_counter()
+        try:
+            char = dt.fit_character(Vt, cage_v, cage_f, marks_t, V, F, marks)
+        except CageFitError as exc:
+            seconds = time.perf_counter() - t0
+            rejected_v, rejected_f = exc.cage
+            crossing = self_intersecting_faces(rejected_v, rejected_f)
+            out[name] = {"valid": False, "error": str(exc), "seconds": seconds,
+                         "vertices": len(V), "credit": model.credit}
+            print(f"  {name}: {len(V)} vertices, {seconds:.1f} s: {exc}")
+            if folder:
+                path = folder / f"transfer_{name}.png"
+                render_grid(path, [[(V, F), (V, F)]],
+                            cages=[[(rejected_v, rejected_f),
+                                    (rejected_v, rejected_f[crossing])]],
+                            titles=[[f"{name}: rejected cage", "its crossing faces"]],
+                            size=(360, 420), views=((10, -80),))
+                print(f"  wrote {path}")
+            continue
+        outs = [(dt.transfer(char, C, "pose"), F) for C in deformed]
+        out[name] = {"valid": True, "seconds": char.fit.seconds, "vertices": len(V),
+                     "repairs": char.fit.repairs, "credit": model.credit,
+                     "max_landmark_error_pct": float(char.fit.landmark_errors.max()
+                                                     / np.ptp(V[:, 1]) * 100)}
+        print(f"  {name}: {len(V)} vertices, valid cage in {char.fit.seconds:.1f} s "
+              f"({char.fit.repairs} repairs)")
+        if folder:
+            path = folder / f"transfer_{name}.png"
+            dt.render_grid(path, [[(V, F)] + list(examples), [(V, F)] + outs],
+                           labels=["template examples", f"{name}: pose-aware transfer"])
+            print(f"  wrote {path}")
+    return out
 
 
 def draw(folder, pictures, titles) -> None:

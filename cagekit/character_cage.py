@@ -51,6 +51,8 @@ MARGIN = 0.002
 CONTACT_WEIGHT = 4.0
 #: bounds of the per-vertex scale of the as-similar-as-possible step
 SCALE_RANGE = (0.67, 1.5)
+#: iterations between two searches for character vertices outside (winding numbers)
+OUTSIDE_EVERY = 4
 #: starting weight of the smoothing rows of the repair (x2 each round)
 SMOOTH_WEIGHT = 0.5
 
@@ -262,7 +264,8 @@ def fit_character_cage(cage_v, cage_f, source_landmarks, target_landmarks, chara
     InputError
         Fewer than 4 landmarks, mismatched counts, NaN, a bad template cage.
     CageFitError
-        No valid cage after the repairs: the message names what failed.
+        No valid cage after the repairs: the message names what failed; its ``cage``
+        attribute holds the rejected ``(cage_v, cage_f)`` (to look at, never to use).
 
     Examples
     --------
@@ -300,8 +303,8 @@ def fit_character_cage(cage_v, cage_f, source_landmarks, target_landmarks, chara
     smooth_weight, contact_weight = 0.0, CONTACT_WEIGHT
 
     def run(C, contacts, enclose=True):
-        for _ in range(iterations):
-            if enclose:
+        for i in range(iterations):
+            if enclose and i % OUTSIDE_EVERY == 0:
                 outside = np.flatnonzero(winding_numbers(X, C, F) < 0.5)
                 contacts = np.union1d(contacts, outside)
             rows, targets = [phi], [Qa]
@@ -333,9 +336,11 @@ def fit_character_cage(cage_v, cage_f, source_landmarks, target_landmarks, chara
         C, contacts = run(C, contacts)
         checks = cage_checks(X, C, F)
     if not checks["valid"]:
-        raise CageFitError("no valid character cage: the fitted cage "
-                           + "; it ".join(checks["problems"])
-                           + f" after {repairs} repair round(s)")
+        error = CageFitError("no valid character cage: the fitted cage "
+                             + "; it ".join(checks["problems"])
+                             + f" after {repairs} repair round(s)")
+        error.cage = (alignment.apply(C), F)  # for a picture of what went wrong
+        raise error
     cage_out = alignment.apply(C)
     consistency = _consistency(phi, Qa, C, F)
     return CharacterCageFit(

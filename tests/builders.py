@@ -203,9 +203,11 @@ def states_equal(a, b):
 
 
 def small_humanoid_data(out):
-    """A small humanoid data set in ``out``: template, cage, one novel body ("stocky"), two
-    poses with ground truth, two training poses; returns the summary."""
+    """A small humanoid data set in ``out``: template (resolution 0.5), its artist cage,
+    one body in its rest pose ("stocky"), one novel character in its own ("a_pose"), two
+    poses with ground truth, the reverse examples, two training poses; returns the
+    summary."""
     from apps import humanoid_data
 
-    return humanoid_data.write(out, poses=2, train_poses=2, landmarks=40, cage_faces=100,
-                               resolution=0.5, bodies=("stocky",))
+    return humanoid_data.write(out, poses=2, train_poses=2, landmarks=40, resolution=0.5,
+                               bodies=("stocky",), novel=("a_pose",))
