@@ -69,7 +69,7 @@ bench-learn: $(STAMP)
 # writes the humanoid data set (out/humanoid), trains the fixed-source model (6000 steps,
 # about 16 min, reused when there) and compares the transfers with ground truth
 bench-transfer: $(STAMP)
-	$(BIN)/python benchmarks/bench_transfer.py --json out/bench_transfer.json --grid out/transfer_grid.png
+	$(BIN)/python benchmarks/bench_transfer.py --json out/bench_transfer.json --grid-dir out/transfer
 
 clean:
 	rm -rf out .pytest_cache build *.egg-info

@@ -6,8 +6,8 @@ from builders import small_humanoid_data
 
 from apps import humanoid_data
 from cagekit import io
-from cagekit.cage import cage_encloses
-from cagekit.datasets import humanoid
+from cagekit.cage import cage_encloses, check_cage
+from cagekit.datasets import characters, humanoid
 from cagekit.errors import InputError
 from cagekit.landmarks import load_landmarks
 
@@ -39,7 +39,38 @@ def test_data_set_is_consistent(data):
         np.testing.assert_allclose(xyz, rig.vertices[rig.landmarks[label]], atol=1e-12)
     assert len(list((out / "train").iterdir())) == 2
     cage_v, cage_f = io.load_mesh(out / "template_cage.obj")
-    assert cage_encloses(Vt, cage_v, cage_f)
+    assert cage_encloses(Vt, cage_v, cage_f) and summary["cage"] == "artist"
+
+
+def test_novel_characters_and_reverse_examples(data):
+    out, summary = data
+    assert summary["characters"] == ["a_pose"]
+    char = characters.character("a_pose", labels=humanoid_data.landmark_names(40))
+    V, F = io.load_mesh(out / "characters" / "a_pose.obj")
+    np.testing.assert_allclose(V, char.vertices, atol=1e-12)
+    marks = load_landmarks(out / "characters" / "a_pose.picked")
+    assert "nose-tip" in marks or "L_heel" in marks or len(marks) < 40
+    truth, _ = io.load_mesh(out / "truth" / "a_pose" / "pose_001.obj")
+    pose = humanoid.random_pose(humanoid_data.TEST_POSE_SEED + 1)
+    np.testing.assert_allclose(truth, char.truth(pose), atol=1e-9)
+    t_pose, _ = io.load_mesh(out / "truth" / "a_pose" / "t_pose.obj")
+    np.testing.assert_allclose(t_pose, char.truth({}), atol=1e-9)
+    # each reverse example: the template in a rest-like pose, its skinned cage (valid,
+    # enclosing it) and its landmarks moved with it
+    rig = humanoid.rig("template", resolution=0.5)
+    assert summary["reverse_poses"] == len(humanoid_data.REVERSE_POSES)
+    for i, angles in enumerate(humanoid_data.REVERSE_POSES):
+        stem = out / "reverse" / f"pose_{i:02d}"
+        Vp, _ = io.load_mesh(f"{stem}.obj")
+        cage_v, cage_f = io.load_mesh(f"{stem}_cage.obj")
+        check_cage(cage_v, cage_f)
+        assert cage_encloses(Vp, cage_v, cage_f)
+        posed = load_landmarks(f"{stem}_landmarks.json")
+        np.testing.assert_allclose(posed["l_hand_tip"] if "l_hand_tip" in posed
+                                   else next(iter(posed.values())),
+                                   Vp[rig.landmarks["l_hand_tip" if "l_hand_tip" in posed
+                                                   else next(iter(posed))]], atol=1e-12)
+        np.testing.assert_allclose(Vp, rig.pose(characters.rest_pose(**angles)), atol=1e-9)
 
 
 def test_landmark_names_spread_and_bounds():

@@ -135,3 +135,28 @@ def test_save_landmarks_validates(tmp_path):
     with pytest.raises(InputError, match="no landmarks"):
         clm.save_landmarks(tmp_path / "m.csv", {})
     assert os.listdir(tmp_path) == []
+
+
+def test_save_picked_round_trips_through_load_landmarks(tmp_path):
+    from cagekit.landmarks import SurfacePoint, save_picked
+
+    points = [SurfacePoint("nose", 12, (0.5, 0.25, 0.25), (0.1, 1.6, 0.12)),
+              SurfacePoint("l_heel", 3, (1.0, 0.0, 0.0), (-0.2, 0.0, -1e-3))]
+    save_picked(tmp_path / "marks.picked", points)
+    lines = (tmp_path / "marks.picked").read_text().splitlines()
+    assert lines[0] == "2" and all(len(line.split()) == 9 for line in lines[1:])
+    loaded = clm.load_landmarks(tmp_path / "marks.picked")
+    assert list(loaded) == ["nose", "l_heel"]
+    np.testing.assert_array_equal(loaded["l_heel"], [-0.2, 0.0, -1e-3])
+
+
+@pytest.mark.parametrize("label, name, message", [
+    ("two words", "m.picked", "without spaces"),
+    ("nose", "m.json", ".picked files only"),
+])
+def test_save_picked_refuses_what_thea_cannot_read(tmp_path, label, name, message):
+    from cagekit.landmarks import SurfacePoint, save_picked
+
+    with pytest.raises(InputError, match=message):
+        save_picked(tmp_path / name, [SurfacePoint(label, 0, (1, 0, 0), (0, 0, 0))])
+    assert not (tmp_path / name).exists()

@@ -1,0 +1,95 @@
+"""Carrying a template cage's motion to a character's cage (cagekit.cage_transfer)."""
+
+import numpy as np
+import pytest
+from builders import SEEDS, random_rotation
+from hypothesis import given, settings
+
+from cagekit.alignment import Similarity
+from cagekit.cage_transfer import (
+    face_gradients,
+    polar,
+    transfer_cage,
+    transfer_offsets,
+    transfer_pose,
+)
+from cagekit.errors import InputError
+from cagekit.shapes import box_cage
+
+
+def _limb():
+    """A box cage 4 long in x, split into 4 sections: a limb with its root at x = 0."""
+    v, f = box_cage()
+    v = v * np.array([2.0, 0.5, 0.5]) + np.array([2.0, 0.0, 0.0])
+    return v, f
+
+
+def _rotate_about(V, R, centre):
+    return (V - centre) @ R.T + centre
+
+
+def test_a_rigidly_rotated_limb_gets_the_rotation_not_the_offset():
+    # the template's limb swings 30 degrees about its root; the character's limb starts
+    # 40 degrees further down: the pose rule puts it where the template's went (pose
+    # transfer), the offsets rule pushes it past by the character's own 40 degrees
+    v, f = _limb()
+    root = np.zeros(3)
+
+    def about_z(degrees):
+        a = np.radians(degrees)
+        return np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+
+    moved = _rotate_about(v, about_z(30), root)
+    character = _rotate_about(v, about_z(-40), root)
+    pose = transfer_pose(v, moved, character, f, Similarity.identity())
+    # the shape and orientation of the template's moved limb (the translation follows
+    # the offsets rule at the least-moved vertex, which the character placed elsewhere)
+    np.testing.assert_allclose(pose - pose.mean(0), moved - moved.mean(0), atol=1e-9)
+    offsets = transfer_offsets(v, moved, character, Similarity.identity())
+    assert np.abs((offsets - offsets.mean(0)) - (moved - moved.mean(0))).max() > 0.5
+
+
+@settings(max_examples=25, deadline=None)
+@given(SEEDS)
+def test_a_similar_character_moves_as_the_template_does(seed):
+    # C_c = A(C_s): the character's cage is the template's mapped by the alignment, so
+    # both rules give A(C_st) exactly, whatever C_st
+    rng = np.random.default_rng(seed)
+    v, f = box_cage()
+    A = Similarity(float(rng.uniform(0.2, 5)), random_rotation(seed), rng.normal(size=3))
+    moved = v @ random_rotation(seed + 1).T * rng.uniform(0.5, 2) + rng.normal(size=(8, 3)) * 0.1
+    for rule in ("pose", "offsets"):
+        out = transfer_cage(rule, v, moved, A.apply(v), f, A)
+        np.testing.assert_allclose(out, A.apply(moved), atol=1e-8 * A.scale)
+
+
+@settings(max_examples=25, deadline=None)
+@given(SEEDS)
+def test_polar_decomposition_reconstructs_with_a_rotation_and_a_symmetric_stretch(seed):
+    rng = np.random.default_rng(seed)
+    T = rng.normal(size=(6, 3, 3))
+    R, S = polar(T)
+    np.testing.assert_allclose(R @ S, T, atol=1e-10)
+    np.testing.assert_allclose(np.swapaxes(R, 1, 2) @ R, np.broadcast_to(np.eye(3), R.shape),
+                               atol=1e-10)
+    np.testing.assert_allclose(np.linalg.det(R), 1.0, atol=1e-10)
+    np.testing.assert_allclose(S, np.swapaxes(S, 1, 2), atol=1e-10)
+
+
+def test_face_gradients_of_an_affine_map_are_its_linear_part():
+    v, f = box_cage()
+    M = np.array([[1.2, 0.3, 0.0], [0.0, 0.8, 0.1], [0.2, 0.0, 1.1]])
+    G = face_gradients(v, v @ M.T + 5.0, f)
+    # the edges are mapped exactly; the scaled normal is mapped like one
+    edges = v[f[:, 1]] - v[f[:, 0]]
+    np.testing.assert_allclose(np.einsum("fij,fj->fi", G, edges), edges @ M.T, atol=1e-12)
+    np.testing.assert_allclose(face_gradients(v, v + 1.0, f),
+                               np.broadcast_to(np.eye(3), G.shape), atol=1e-12)
+
+
+def test_bad_rule_and_mismatched_cages_are_refused():
+    v, f = box_cage()
+    with pytest.raises(InputError, match="rule must be one of"):
+        transfer_cage("twist", v, v, v, f, Similarity.identity())
+    with pytest.raises(InputError, match="same vertex count"):
+        transfer_pose(v, v, v[:6], f, Similarity.identity())
