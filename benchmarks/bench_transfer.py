@@ -231,7 +231,7 @@ def main(argv=None) -> dict:
 
     report(rows, fits, manifest, len(pose_paths), len(reverse), model is not None)
     checks = targets(rows, fits, groups)
-    real = None if args.no_real else real_characters(template, cage, marks_t, examples[:5],
+    real = None if args.no_real else real_characters(template, cage, examples[:5],
                                                      args.grid_dir)
     if args.grid_dir:
         draw(args.grid_dir, pictures, [p.stem for p in pose_paths[:5]])
@@ -319,7 +319,7 @@ def targets(rows, fits, groups) -> dict:
     return {**checks, "ratios": ratios, "worst": worst, "same_pose_error": same_pose}
 
 
-def real_characters(template, cage, marks_t, examples, folder) -> dict:
+def real_characters(template, cage, examples, folder) -> dict:
     """The three real characters of data/characters/: the cage fit, and 5 poses when it
     is valid (a picture either way)."""
     from cagekit.cage import self_intersecting_faces
@@ -336,7 +336,15 @@ def real_characters(template, cage, marks_t, examples, folder) -> dict:
     except InputError as exc:
         print(f"\nreal characters skipped: {exc}")
         return {}
+    from cagekit.datasets import humanoid
+
     (Vt, _), (cage_v, cage_f) = template, cage
+    rig = humanoid.rig("template")
+    if rig.vertices.shape != Vt.shape or not np.allclose(rig.vertices, Vt):
+        print("\nreal characters skipped: the data set's template is not rig('template')")
+        return {}
+    # the characters' labels are any of the template's 161 (data/characters/README)
+    marks_t = humanoid_data.landmarks_of(rig, humanoid.LANDMARK_NAMES)
     fitter = dt.classical_fitter(Vt, cage_v, cage_f)
     deformed = [fitter(V) for V, _ in examples]
     out = {}

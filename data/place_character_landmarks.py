@@ -1,4 +1,4 @@
-"""Place the humanoid template's landmark labels on real characters (``data/characters/``).
+"""Place 60 of the humanoid template's landmark labels on real characters (``data/characters/``).
 
 For each character of Debian's ``sweethome3d-furniture`` named below, the template rig of
 :mod:`cagekit.datasets.humanoid` is fitted to the character's surface (its height, a
@@ -33,16 +33,20 @@ sys.path.insert(0, ROOT)
 CHARACTERS = (("Reallusion", "male02", "reallusion_male02"),
               ("Reallusion", "girlStanding", "reallusion_girl_standing"),
               ("KatorLegaz", "male-01-suit", "katorlegaz_male_01_suit"))
-#: how many of the template's 100 labels are placed
-COUNT = 60
+#: the labels placed: 12 on the centre line, 24 a side (torso sides, both sides of every
+#: limb: what keeps each limb's cage apart from the torso's)
+CENTRE = ("head_top", "nose_tip", "chin", "head_back", "neck_front", "neck_back",
+          "chest_front", "belly", "pelvis_front", "back_upper", "back_lower", "pelvis_back")
+SIDE = ("waist", "hip_side", "chest", "shoulder_top", "upper_arm_mid_outer",
+        "upper_arm_mid_inner", "upper_arm_dist_front", "forearm_mid_outer",
+        "forearm_mid_inner", "forearm_dist_back", "hand_tip", "thumb_tip", "hand_back", "palm",
+        "thigh_prox_outer", "thigh_mid_inner", "thigh_mid_front", "thigh_dist_outer",
+        "kneecap", "shin_mid_back", "shin_mid_inner", "ankle_outer", "heel", "toe")
 
 
-def labels(count: int = COUNT) -> list[str]:
-    """``count`` of the template's labels, evenly strided."""
-    from apps.humanoid_data import landmark_names
-
-    every = landmark_names(100)
-    return [every[i] for i in np.round(np.linspace(0, len(every) - 1, count)).astype(int)]
+def labels() -> list[str]:
+    """The 60 labels placed (:data:`CENTRE`, then :data:`SIDE` on the left and the right)."""
+    return [*CENTRE, *(f"{side}_{name}" for side in "lr" for name in SIDE)]
 
 
 def find(catalog: str, stem: str):
