@@ -88,7 +88,7 @@ def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
     template_landmarks, character_landmarks : mapping of str to (3,) float
         Named landmarks of the two rest poses; matched by label (at least 4 shared).
     character_v, character_f : (n, 3) float, (m, 3) int
-        The novel character in rest pose (faces may be empty for a point cloud).
+        The novel character in rest pose (any number of parts, open or closed).
     align : {"box", "similarity"}, default "box"
         How the rest poses are aligned before the fit: bounding-box centres and heights
         (:func:`cagekit.alignment.box_alignment`), or the landmarks' similarity.
@@ -118,7 +118,8 @@ def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
         try:
             alignment = box_alignment(template_v, character_v)
         except InputError as exc:
-            raise InputError(f"cannot align the rest poses of {names}: {exc}") from None
+            raise InputError("cannot align the template's and the character's meshes by "
+                             f"their bounding boxes: {exc.problem}") from None
     elif align == "similarity":
         try:
             alignment = similarity_alignment(match.source, match.target)
@@ -273,8 +274,9 @@ def template_cage_learned(model, template_v, cage_v, pose) -> np.ndarray:
     return predict_cages(model, np.asarray(template_v, np.float64), pose, points=points)[1]
 
 
-def transfer(character: CharacterCage, deformed_template_cage_v, rule: str = "pose"):
-    """The character deformed like the template: (n, 3) float64 vertices.
+def transfer(character: CharacterCage, deformed_template_cage_v,
+             rule: str = "pose") -> np.ndarray:
+    """The character deformed like the template.
 
     Parameters
     ----------
@@ -284,6 +286,11 @@ def transfer(character: CharacterCage, deformed_template_cage_v, rule: str = "po
         ``C_st`` from :func:`template_cage_classical` or :func:`template_cage_learned`.
     rule : {"pose", "offsets"}, default "pose"
         How the template cage's motion is carried (:mod:`cagekit.cage_transfer`).
+
+    Returns
+    -------
+    (n, 3) float64
+        The character's vertices, in its rest pose's frame and faces.
     """
     cage = transfer_cage(rule, character.template_cage_v, deformed_template_cage_v,
                          character.cage_v, character.cage_f, character.fit.alignment)

@@ -14,7 +14,8 @@ rules:
   rest rotation is replaced (a T-pose example gives a T-pose, whatever the character's
   rest pose). The cage is the sparse least-squares fit of every face's edges to those
   gradients; its translation, which edges cannot fix, follows the offsets rule at the
-  cage vertices the template moves least (the root of the motion).
+  cage vertices the template moves least (the root of the motion), component by
+  component.
 
 Both work in the template's frame: ``alignment`` maps it to the character's.
 """
@@ -27,6 +28,7 @@ import scipy.sparse.linalg
 
 from cagekit.alignment import Similarity
 from cagekit.errors import InputError
+from cagekit.frame import Frame
 from cagekit.geometry import as_vertices
 
 __all__ = ["RULES", "face_gradients", "polar", "transfer_offsets", "transfer_pose",
@@ -99,8 +101,7 @@ def polar(T) -> tuple[np.ndarray, np.ndarray]:
     T = np.asarray(T, dtype=np.float64)
     U, sigma, Vt = np.linalg.svd(T)
     D = np.ones_like(sigma)
-    D[:, 2] = np.sign(np.linalg.det(U @ Vt))
-    D[D == 0] = 1.0
+    D[:, 2] = np.where(np.linalg.det(U @ Vt) < 0, -1.0, 1.0)
     R = U @ (D[:, :, None] * Vt)
     S = np.swapaxes(Vt, 1, 2) @ ((D * sigma)[:, :, None] * Vt)
     return R, S
@@ -183,6 +184,13 @@ def transfer_pose(template_cage_v, deformed_template_cage_v, character_cage_v, c
     if not Cs.shape == Ct.shape == Cc.shape:
         raise InputError(f"the three cages must have the same vertex count, got {len(Cs)}, "
                          f"{len(Ct)} and {len(Cc)}")
+    unused = np.setdiff1d(np.arange(len(Cs)), F)
+    if len(unused):
+        raise InputError(f"cage vertex {int(unused[0])} is used by no face: its position "
+                         "cannot be transferred")
+    # in a frame of unit size (the gradients are scale-free; zero-area tests are not)
+    frame = Frame.of(Cs, unit="diagonal")
+    Cs, Ct, Cc = frame.to_unit(Cs), frame.to_unit(Ct), frame.to_unit(Cc)
     Rt, St = polar(face_gradients(Cs, Ct, F))
     _, Sc = polar(face_gradients(Cs, Cc, F))
     G = Rt @ St @ Sc
@@ -191,25 +199,36 @@ def transfer_pose(template_cage_v, deformed_template_cage_v, character_cage_v, c
     rest_edges = (D @ Cs).reshape(-1, 3, 3)
     target = np.einsum("fij,fej->fei", G, rest_edges).reshape(-1, 3)
     offsets = transfer_offsets(Cs, Ct, Cc, Similarity.identity())
-    weights = _root_weights(np.linalg.norm(Ct - Cs, axis=1))
-    # min |D X - target|^2 + eps sum_i w_i |x_i - offsets_i|^2: the tiny term fixes the
-    # translation (the weighted mean of X is that of the offsets rule), nothing else
-    eps = 1e-8 * float(D.multiply(D).sum()) / max(float(weights.sum()), 1e-300)
+    weights = _root_weights(np.linalg.norm(Ct - Cs, axis=1), F)
+    # min |D X - target|^2 + eps sum_i w_i |x_i - offsets_i|^2: the tiny term fixes each
+    # component's translation (its weighted mean is the offsets rule's), nothing else
+    eps = 1e-8 * 6.0 * len(F) / weights.sum()
     K = (D.T @ D + eps * scipy.sparse.diags(weights)).tocsc()
     rhs = D.T @ target + eps * weights[:, None] * offsets
     X = scipy.sparse.linalg.splu(K).solve(rhs)
-    # the weighted mean exactly (the eps term leaves an O(eps) error elsewhere)
-    X += (weights @ offsets - weights @ X) / weights.sum()
+    # each component's weighted mean exactly (the eps term leaves an O(eps) error)
+    for part in _vertex_components(len(Cs), F):
+        w = weights[part]
+        X[part] += (w @ offsets[part] - w @ X[part]) / w.sum()
     if not np.isfinite(X).all():
         raise FloatingPointError("the pose-aware transfer produced NaN or inf positions")
-    return alignment.apply(X)
+    return alignment.apply(frame.to_world(X))
 
 
-def _root_weights(displacement) -> np.ndarray:
-    """1 on the :data:`ROOT_SHARE` least-displaced cage vertices, 0 elsewhere."""
-    count = max(1, int(np.ceil(ROOT_SHARE * len(displacement))))
+def _vertex_components(k, F) -> list[np.ndarray]:
+    """The vertex indices of each connected component of the faces."""
+    from cagekit.cage import face_components
+
+    labels = face_components(k, F)
+    return [np.unique(F[labels == label]) for label in np.unique(labels)]
+
+
+def _root_weights(displacement, F) -> np.ndarray:
+    """1 on the :data:`ROOT_SHARE` least-displaced vertices of each component, else 0."""
     weights = np.zeros(len(displacement))
-    weights[np.argsort(displacement, kind="stable")[:count]] = 1.0
+    for part in _vertex_components(len(displacement), F):
+        count = max(1, int(np.ceil(ROOT_SHARE * len(part))))
+        weights[part[np.argsort(displacement[part], kind="stable")[:count]]] = 1.0
     return weights
 
 

@@ -35,9 +35,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cagekit.alignment import Similarity
-from cagekit.cage import check_cage, self_intersecting_faces, unique_edges, winding_numbers
+from cagekit.cage import (
+    check_cage,
+    self_intersecting_faces,
+    signed_volume,
+    unique_edges,
+    winding_numbers,
+)
 from cagekit.coords import bind
-from cagekit.errors import CageFitError, InputError
+from cagekit.errors import CageError, CageFitError, InputError
+from cagekit.frame import Frame
 from cagekit.geometry import as_vertices
 
 __all__ = ["CharacterCageFit", "fit_character_cage", "cage_checks", "LANDMARK_WEIGHT",
@@ -51,6 +58,8 @@ MARGIN = 0.002
 CONTACT_WEIGHT = 4.0
 #: bounds of the per-vertex scale of the as-similar-as-possible step
 SCALE_RANGE = (0.67, 1.5)
+#: the largest template cage the fit takes (its solves are dense)
+MAX_CAGE_VERTICES = 5000
 #: iterations between two searches for character vertices outside (winding numbers)
 OUTSIDE_EVERY = 4
 #: starting weight of the smoothing rows of the repair (x2 each round)
@@ -121,8 +130,6 @@ def cage_checks(points, cage_v, cage_f) -> dict:
     >>> cage_checks(np.full((1, 3), 5.0), v, f)["problems"]
     ['leaves 100.00% of the points outside (1 of 1)']
     """
-    from cagekit.cage import signed_volume
-
     V = as_vertices(cage_v, "cage_v")
     F = np.asarray(cage_f, dtype=np.int64)
     volume = float(signed_volume(V, F))
@@ -167,8 +174,7 @@ class _CageARAP:
         np.add.at(S, self.edges[:, 1], cov)
         U, sigma, Vt = np.linalg.svd(S)
         d = np.ones_like(sigma)
-        d[:, 2] = np.sign(np.linalg.det(U @ Vt))
-        d[d == 0] = 1.0
+        d[:, 2] = np.where(np.linalg.det(U @ Vt) < 0, -1.0, 1.0)
         R = np.swapaxes(Vt, 1, 2) @ (d[:, :, None] * np.swapaxes(U, 1, 2))
         scale = (d * sigma).sum(axis=1) / np.maximum(self.spread, 1e-300)
         return R * np.clip(scale, SCALE_RANGE[0], SCALE_RANGE[1])[:, None, None]
@@ -249,7 +255,8 @@ def fit_character_cage(cage_v, cage_f, source_landmarks, target_landmarks, chara
         (:func:`cagekit.alignment.box_alignment`, :func:`~cagekit.alignment.similarity_alignment`).
     landmark_weight : float, default :data:`LANDMARK_WEIGHT`
     margin : float, default :data:`MARGIN`
-        Clearance of the enclosure and the repair, in cage diagonals.
+        How far past each character vertex the enclosure contacts push the cage, in cage
+        diagonals.
     iterations : int, default 40
         Local/global iterations of the fit (and again after each repair).
     repair_rounds : int, default 6
@@ -262,7 +269,8 @@ def fit_character_cage(cage_v, cage_f, source_landmarks, target_landmarks, chara
     Raises
     ------
     InputError
-        Fewer than 4 landmarks, mismatched counts, NaN, a bad template cage.
+        Fewer than 4 landmarks, mismatched counts, NaN, landmarks on one line, a bad
+        template cage (a vertex no face uses, more than :data:`MAX_CAGE_VERTICES`).
     CageFitError
         No valid cage after the repairs: the message names what failed; its ``cage``
         attribute holds the rejected ``(cage_v, cage_f)`` (to look at, never to use).
@@ -289,11 +297,22 @@ def fit_character_cage(cage_v, cage_f, source_landmarks, target_landmarks, chara
     for name, value in (("landmark_weight", landmark_weight), ("margin", margin)):
         if not (np.isfinite(value) and value > 0):
             raise InputError(f"{name} must be a positive number, got {value!r}")
+    _check_spread(Q, "the character's")
+    _check_spread(P, "the template's")
     Cs = as_vertices(cage_v, "cage_v")
     F = check_cage(Cs, cage_f)
-    X = alignment.invert(as_vertices(character_v, "character_v"))
-    Qa = alignment.invert(Q)
+    unused = np.setdiff1d(np.arange(len(Cs)), F)
+    if len(unused):
+        raise CageError(f"cage vertex {int(unused[0])} is used by no face")
+    if len(Cs) > MAX_CAGE_VERTICES:
+        raise InputError(f"the template cage has {len(Cs)} vertices; the character fit "
+                         f"takes at most {MAX_CAGE_VERTICES} (a coarse cage, as an artist's)")
     phi = bind(P, Cs, F).weights
+    # the template's frame, scaled to a unit diagonal: every tolerance is relative
+    frame = Frame.of(Cs, unit="diagonal")
+    X = frame.to_unit(alignment.invert(as_vertices(character_v, "character_v")))
+    Qa = frame.to_unit(alignment.invert(Q))
+    Cs = frame.to_unit(Cs)
     gap = margin * float(np.linalg.norm(np.ptp(Cs, axis=0)))
     solver = _CageARAP(Cs, F)
     umbrella = _umbrella(len(Cs), solver.edges)
@@ -317,6 +336,8 @@ def fit_character_cage(cage_v, cage_f, source_landmarks, target_landmarks, chara
                 rows.append(umbrella[smoothed]), targets.append(np.zeros((len(smoothed), 3)))
                 weights.append(np.full(len(smoothed), smooth_weight))
             C = solver.solve(C, np.vstack(rows), np.vstack(targets), np.concatenate(weights))
+            if not np.isfinite(C).all():
+                raise CageFitError("the character cage fit diverged (non-finite positions)")
         return C, contacts
 
     # the landmarks alone first: contacts taken while limbs still swing would pull the
@@ -326,6 +347,8 @@ def fit_character_cage(cage_v, cage_f, source_landmarks, target_landmarks, chara
     checks = cage_checks(X, C, F)
     repairs = 0
     while not checks["valid"] and repairs < repair_rounds:
+        if not (checks["self_intersecting_faces"] or checks["outside"]):
+            break  # inverted only: nothing a repair round changes
         repairs += 1
         if checks["self_intersecting_faces"]:
             crossing = np.unique(F[self_intersecting_faces(C, F)])
@@ -339,9 +362,9 @@ def fit_character_cage(cage_v, cage_f, source_landmarks, target_landmarks, chara
         error = CageFitError("no valid character cage: the fitted cage "
                              + "; it ".join(checks["problems"])
                              + f" after {repairs} repair round(s)")
-        error.cage = (alignment.apply(C), F)  # for a picture of what went wrong
+        error.cage = (alignment.apply(frame.to_world(C)), F)  # to look at what went wrong
         raise error
-    cage_out = alignment.apply(C)
+    cage_out = alignment.apply(frame.to_world(C))
     consistency = _consistency(phi, Qa, C, F)
     return CharacterCageFit(
         cage_v=cage_out, cage_f=F, alignment=alignment,
@@ -349,6 +372,15 @@ def fit_character_cage(cage_v, cage_f, source_landmarks, target_landmarks, chara
         consistency=consistency, initial_consistency=_consistency(phi, Qa, Cs, F),
         checks=checks, iterations=iterations * (repairs + 2), repairs=repairs,
         contacts=len(contacts), seconds=time.perf_counter() - start)
+
+
+def _check_spread(points, whose) -> None:
+    """Refuse landmarks that all lie on one line (no 3D cage can be placed by them)."""
+    centred = points - points.mean(axis=0)
+    spread = np.linalg.svd(centred, compute_uv=False)
+    if spread[0] <= 0 or spread[1] <= 1e-9 * spread[0]:
+        raise InputError(f"{whose} landmarks all lie on one line or at one point: they "
+                         "cannot place a cage")
 
 
 def _consistency(phi, Qa, C, F) -> float:

@@ -47,6 +47,11 @@ def test_a_rigidly_rotated_limb_gets_the_rotation_not_the_offset():
     np.testing.assert_allclose(pose - pose.mean(0), moved - moved.mean(0), atol=1e-9)
     offsets = transfer_offsets(v, moved, character, Similarity.identity())
     assert np.abs((offsets - offsets.mean(0)) - (moved - moved.mean(0))).max() > 0.5
+    # its place: the vertex the template moves least (here one, a tenth of 8) keeps the
+    # offsets rule's position, the character's vertex plus the template's displacement
+    root_vertex = int(np.argmin(np.linalg.norm(moved - v, axis=1)))
+    np.testing.assert_allclose(pose, moved + (character[root_vertex] - v[root_vertex]),
+                               atol=1e-9)
 
 
 @settings(max_examples=25, deadline=None)
@@ -93,3 +98,51 @@ def test_bad_rule_and_mismatched_cages_are_refused():
         transfer_cage("twist", v, v, v, f, Similarity.identity())
     with pytest.raises(InputError, match="same vertex count"):
         transfer_pose(v, v, v[:6], f, Similarity.identity())
+
+
+def test_the_template_stretch_comes_after_the_characters():
+    # a global linear case, so each face's gradient is the map itself: the template's
+    # motion R_t S_t (a turn after a stretch along a diagonal) applied after the
+    # character's stretch S_c (along x); the other order would differ (S_t, S_c do not
+    # commute)
+    v, f = box_cage()
+    diagonal = np.array([1.0, 1.0, 0.0]) / np.sqrt(2)
+    S_t = np.eye(3) + 0.5 * np.outer(diagonal, diagonal)
+    S_c = np.diag([1.8, 1.0, 1.0])
+    R_t = random_rotation(7)
+    out = transfer_pose(v, v @ (R_t @ S_t).T, v @ S_c.T, f, Similarity.identity())
+    expected = v @ (R_t @ S_t @ S_c).T
+    np.testing.assert_allclose(out - out.mean(0), expected - expected.mean(0), atol=1e-9)
+    wrong = v @ (R_t @ S_c @ S_t).T
+    assert np.abs((out - out.mean(0)) - (wrong - wrong.mean(0))).max() > 0.05
+
+
+def test_the_translation_follows_the_root_of_the_motion():
+    # a character that is the template moved by t: whatever the example, both rules give
+    # the example moved by t (the least-moved vertices carry the translation)
+    v, f = _limb()
+    a = np.radians(35)
+    turn = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+    moved = _rotate_about(v, turn, np.zeros(3)) + np.array([0.0, 0.2, 0.0])
+    t = np.array([5.0, -3.0, 1.0])
+    for rule in ("pose", "offsets"):
+        np.testing.assert_allclose(transfer_cage(rule, v, moved, v + t, f,
+                                                 Similarity.identity()), moved + t,
+                                   atol=1e-9)
+
+
+def test_each_cage_component_keeps_its_own_translation():
+    v, f = box_cage()
+    V = np.vstack([v, v + np.array([4.0, 0, 0])])
+    F = np.vstack([f, f + len(v)])
+    moved = V.copy()
+    moved[len(v):] += np.array([0.0, 1.0, 0.0])  # only the second box moves
+    np.testing.assert_allclose(transfer_pose(V, moved, V, F, Similarity.identity()), moved,
+                               atol=1e-9)
+
+
+def test_a_vertex_no_face_uses_is_refused():
+    v, f = box_cage()
+    V = np.vstack([v, [[9.0, 9, 9]]])
+    with pytest.raises(InputError, match="used by no face"):
+        transfer_pose(V, V, V, f, Similarity.identity())

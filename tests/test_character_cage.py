@@ -99,3 +99,43 @@ def test_bad_arguments(kwargs, message):
             "character_v": p, "alignment": Similarity.identity(), **kwargs}
     with pytest.raises(InputError, match=message):
         fit_character_cage(**args)
+
+
+def test_limbs_may_thicken_as_similar_as_possible():
+    # no alignment: the character is the template 1.3 times larger about its centre; a
+    # rigid (ARAP) fit could not grow the cage, a scale per vertex does
+    v, f = box_cage()
+    p = np.random.default_rng(4).uniform(-0.7, 0.7, (12, 3))
+    fit = fit_character_cage(v, f, p, 1.3 * p, 1.3 * p, alignment=Similarity.identity(),
+                             iterations=300)
+    assert np.median(fit.landmark_errors) < 2e-3
+    np.testing.assert_allclose(fit.cage_v, 1.3 * v, atol=0.02)
+
+
+def test_the_repair_rounds_are_what_makes_the_open_boxes_cage_valid():
+    # robot_boxes (25 open boxes): the fit needs repair rounds; without them it is refused
+    rig = humanoid.rig("template")
+    cage_v, cage_f = humanoid_cage(rig)
+    char = characters.character("robot_boxes")
+    marks_c = {m.label: np.array(m.position) for m in char.landmarks}
+    shared = [k for k in humanoid.LANDMARK_NAMES if k in marks_c]
+    P = np.array([rig.vertices[rig.landmarks[k]] for k in shared])
+    Q = np.array([marks_c[k] for k in shared])
+    A = box_alignment(rig.vertices, char.vertices)
+    fit = fit_character_cage(cage_v, cage_f, P, Q, char.vertices, alignment=A)
+    assert fit.checks["valid"] and fit.repairs >= 1
+    with pytest.raises(CageFitError):
+        fit_character_cage(cage_v, cage_f, P, Q, char.vertices, alignment=A,
+                           repair_rounds=0)
+
+
+def test_landmarks_on_one_line_and_unused_cage_vertices_are_refused():
+    v, f = box_cage()
+    line = np.outer(np.linspace(-0.5, 0.5, 6), [1.0, 0.5, 0.2])
+    with pytest.raises(InputError, match="one line"):
+        fit_character_cage(v, f, np.random.default_rng(0).uniform(-0.5, 0.5, (6, 3)), line,
+                           line, alignment=Similarity.identity())
+    p = np.random.default_rng(1).uniform(-0.5, 0.5, (6, 3))
+    with pytest.raises(InputError, match="used by no face"):
+        fit_character_cage(np.vstack([v, [[5.0, 5, 5]]]), f, p, p, p,
+                           alignment=Similarity.identity())

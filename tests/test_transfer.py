@@ -169,7 +169,20 @@ def test_a_cage_that_cannot_be_fitted_is_one_line_and_writes_nothing(data, tmp_p
     assert result.exit_code == 2, result.output
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and "no valid character cage" in lines[0], lines
+    assert str(out / "characters" / "stocky.obj") in lines[0]  # the file it is about
     assert not (tmp_path / "res").exists()
+
+
+def test_a_cage_vertex_no_face_uses_is_one_line_naming_the_cage(data, tmp_path):
+    out, _ = data
+    cage = tmp_path / "cage.obj"
+    cage.write_text((out / "template_cage.obj").read_text() + "v 9 9 9\n")
+    inputs = _inputs(out)
+    inputs[1] = cage
+    result = _run([*inputs, out / "poses", "-o", tmp_path / "res"])
+    assert result.exit_code == 2, result.output
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "used by no face" in lines[0], lines
 
 
 def test_classical_transfer_does_not_import_torch(data, tmp_path):

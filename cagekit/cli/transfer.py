@@ -62,8 +62,9 @@ def transfer(ctx, template, template_cage, template_landmarks, character,
              grid_path, seed, as_json):
     """Transfer the TEMPLATE's POSES to a novel CHARACTER given matching landmarks.
 
-    TEMPLATE and CHARACTER are meshes in rest pose (any format cagekit reads, any number
-    of parts, open or closed); TEMPLATE_CAGE encloses TEMPLATE, or is 'auto' to fit one.
+    TEMPLATE and CHARACTER are meshes in rest pose (any mesh format cagekit reads, any
+    number of parts, open or closed); TEMPLATE_CAGE encloses TEMPLATE, or is 'auto' to fit
+    one.
     The landmark files (.picked with 9 or 10 columns, .json or .csv) name points on each,
     matched by label; labels in one file only are reported. POSE is a mesh of the
     template in a new pose, or a folder of them. The character's cage is checked
@@ -89,15 +90,20 @@ def transfer(ctx, template, template_cage, template_landmarks, character,
                    character_landmarks, pose_paths, model_path, cage_faces, seed)
     t_loaded = time.perf_counter()
     (Vt, Ft), (cage_v, cage_f), marks_t, (Vc, Fc), marks_c, pose_meshes, model = loaded
-    char = dt.fit_character(Vt, cage_v, cage_f, marks_t, Vc, Fc, marks_c, align=align,
-                            template_name=template_landmarks,
-                            character_name=character_landmarks)
+    try:
+        char = dt.fit_character(Vt, cage_v, cage_f, marks_t, Vc, Fc, marks_c, align=align,
+                                template_name=template_landmarks,
+                                character_name=character_landmarks)
+    except InputError as exc:
+        if exc.path is not None:
+            raise
+        raise type(exc)(exc.problem, character) from None  # name the character
     unmatched = char.match.unmatched(template_landmarks, character_landmarks)
     if unmatched:
         warnings.warn(CagekitWarning(unmatched), stacklevel=1)
     t_fitted = time.perf_counter()
-    results = _transfer_poses(char, (Vt, Ft), (cage_v, cage_f), pose_meshes, model, rule,
-                              seed)
+    results = _transfer_poses(char, (Vt, Ft), (cage_v, cage_f), pose_paths, pose_meshes, model,
+                              rule, seed)
     rows = _write(out, char, pose_paths, names, results, pose_meshes, grid_path)
     seconds = {"load": t_loaded - start, "fit": t_fitted - t_loaded,
                "transfer": time.perf_counter() - t_fitted}
@@ -193,7 +199,8 @@ def _load(template, template_cage, template_landmarks, character, character_land
     return ((Vt, Ft), (cage_v, cage_f), marks_t, (Vc, Fc), marks_c, pose_meshes, model)
 
 
-def _transfer_poses(char, template, template_cage, pose_meshes, model, rule, seed):
+def _transfer_poses(char, template, template_cage, pose_paths, pose_meshes, model, rule,
+                    seed):
     """(transferred vertices, seconds) per pose, classical or learned."""
     from apps import deformation_transfer as dt
 
@@ -201,14 +208,18 @@ def _transfer_poses(char, template, template_cage, pose_meshes, model, rule, see
     fitter = dt.classical_fitter(Vt, cage_v, cage_f) if model is None else None
     results = []
     with progress_bar("poses", "pose", total=len(pose_meshes)) as bar:
-        for (Vp, Fp) in pose_meshes:
+        for path, (Vp, Fp) in zip(pose_paths, pose_meshes):
             t0 = time.perf_counter()
-            if model is None:
-                deformed = dt.template_cage_classical((Vt, Ft), (cage_v, cage_f), (Vp, Fp),
-                                                      seed=seed, fitter=fitter)
-            else:
-                deformed = dt.template_cage_learned(model, Vt, cage_v, (Vp, Fp))
-            results.append((dt.transfer(char, deformed, rule), time.perf_counter() - t0))
+            try:
+                if model is None:
+                    deformed = dt.template_cage_classical((Vt, Ft), (cage_v, cage_f),
+                                                          (Vp, Fp), seed=seed, fitter=fitter)
+                else:
+                    deformed = dt.template_cage_learned(model, Vt, cage_v, (Vp, Fp))
+                X = dt.transfer(char, deformed, rule)
+            except InputError as exc:
+                raise InputError(exc.problem, path) from None  # name the pose
+            results.append((X, time.perf_counter() - t0))
             bar.update(1)
     return results
 

@@ -13,8 +13,9 @@ real character. Each :class:`Character` here has, from the same rig (so with gro
   (near the rig's landmark vertex, not on it), with labels missing and misspelt
   (:data:`MISSING`, :data:`MISSPELT`).
 
-``truth(pose)`` poses the character with the given *absolute* joint rotations (those of
-:meth:`cagekit.datasets.humanoid.Rig.pose`, the T-pose being the identity): pose transfer
+``truth(pose)`` poses the character with the given joint rotations *from the canonical
+T-pose* (those of :meth:`cagekit.datasets.humanoid.Rig.pose`, the T-pose being the
+identity), not from the character's rest pose: pose transfer
 of a template example ``(rest -> pose)`` must give ``truth(pose)``, and of the example
 ``(pose -> rest)`` must give ``truth({})``, whatever the character's rest pose.
 
@@ -77,13 +78,13 @@ def rest_pose(arms: float = 0.0, legs: float = 0.0, turn: float = 0.0,
     """
     y, z = np.eye(3)[1], np.eye(3)[2]
     mirror = np.outer([-1.0, 1, 1], [-1.0, 1, 1])
-    left = {"l_shoulder": humanoid._rodrigues(z * np.radians(arms)),
-            "l_elbow": humanoid._rodrigues(-y * np.radians(elbows)),
-            "l_hip": humanoid._rodrigues(z * np.radians(legs))}
+    left = {"l_shoulder": humanoid.rotation_matrix(z * np.radians(arms)),
+            "l_elbow": humanoid.rotation_matrix(-y * np.radians(elbows)),
+            "l_hip": humanoid.rotation_matrix(z * np.radians(legs))}
     pose = dict(left)
     for name, R in left.items():
         pose["r_" + name[2:]] = R * mirror
-    pose["chest"] = humanoid._rodrigues(y * np.radians(turn))
+    pose["chest"] = humanoid.rotation_matrix(y * np.radians(turn))
     return pose
 
 
@@ -109,7 +110,9 @@ class Character:
         The rest pose.
     faces : (m, 3) int64
     rest_pose : dict[str, (3, 3) float64]
-        Absolute joint rotations of the rest pose.
+        The rest pose's joint rotations from the canonical T-pose (the local rotations
+        :meth:`cagekit.datasets.humanoid.Rig.pose` takes), not relative to anything of
+        the character's.
     landmarks : list of cagekit.landmarks.SurfacePoint
         On the rest-pose surface, with :data:`MISSING` left out and :data:`MISSPELT`
         misspelt.
@@ -123,7 +126,7 @@ class Character:
     _pose: object = None
 
     def truth(self, pose) -> np.ndarray:
-        """(n, 3) float64: the character in ``pose`` (absolute joint rotations)."""
+        """(n, 3) float64: the character in ``pose`` (joint rotations from the T-pose)."""
         return self._pose(pose)
 
 
@@ -139,6 +142,8 @@ def _box(points, subdivisions: int = 5):
     """An open box (no lid at +third axis) around points, by their principal axes: (V, F)."""
     centre = points.mean(axis=0)
     _, _, axes = np.linalg.svd(points - centre, full_matrices=False)
+    if np.linalg.det(axes) < 0:  # a right-handed frame, so the faces stay outward
+        axes[2] *= -1
     local = (points - centre) @ axes.T
     lo, hi = local.min(axis=0), local.max(axis=0)
     n = subdivisions
@@ -183,7 +188,7 @@ def _boxes(rig):
 def _rigid_pose(rig, joint):
     """Pose function of points rigidly attached to joints (canonical T-pose points)."""
     def pose(points, rotations):
-        A, t = rig._transforms(rotations)
+        A, t = rig.joint_transforms(rotations)
         return np.einsum("nij,nj->ni", A[joint], points) + t[joint]
     return pose
 

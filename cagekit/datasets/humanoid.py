@@ -36,7 +36,7 @@ from functools import lru_cache
 import numpy as np
 
 __all__ = ["BODY_SHAPES", "JOINTS", "LANDMARK_NAMES", "NOVEL_BODIES", "PARENTS", "BodyShape",
-           "Rig", "humanoid", "random_body", "random_pose", "rig"]
+           "Rig", "humanoid", "random_body", "random_pose", "rig", "rotation_matrix"]
 
 _Mesh = tuple[np.ndarray, np.ndarray]
 
@@ -776,6 +776,17 @@ def _landmark_local(spec, counts) -> int:
 # ------------------------------------------------------------------------ rotations
 
 
+def rotation_matrix(axis_angle) -> np.ndarray:
+    """The (3, 3) rotation of an axis-angle vector (radians; Rodrigues' formula).
+
+    Examples
+    --------
+    >>> bool(np.allclose(rotation_matrix([0.0, 0.0, np.pi / 2]) @ [1.0, 0, 0], [0, 1, 0]))
+    True
+    """
+    return _rodrigues(axis_angle)
+
+
 def _rodrigues(axis_angle) -> np.ndarray:
     v = np.asarray(axis_angle, dtype=np.float64)
     theta = float(np.linalg.norm(v))
@@ -847,6 +858,17 @@ class Rig:
                 raise ValueError(f"unknown joint {name!r} in pose; joints are {', '.join(JOINTS)}")
             R[_JI[name]] = _as_rotation(name, value)
         return R
+
+    def joint_transforms(self, pose: Mapping | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Every joint's global transform in ``pose`` (as for :meth:`pose`).
+
+        Returns
+        -------
+        A : (J, 3, 3) float64
+        t : (J, 3) float64
+            A rest-pose point rigidly attached to joint ``j`` goes to ``A[j] @ x + t[j]``.
+        """
+        return self._transforms(pose)
 
     def _transforms(self, pose) -> tuple[np.ndarray, np.ndarray]:
         """Global (A (J, 3, 3), t (J, 3)) of every joint: x -> A x + t."""
