@@ -70,6 +70,7 @@ bench-learn: $(STAMP)
 # about 16 min, reused when there) and compares the transfers with ground truth
 bench-transfer: $(STAMP)
 	$(BIN)/python benchmarks/bench_transfer.py --json out/bench_transfer.json --grid-dir out/transfer
+	$(BIN)/python benchmarks/bench_character_cage.py --json out/bench_character_cage.json
 
 clean:
 	rm -rf out .pytest_cache build *.egg-info

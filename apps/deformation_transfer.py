@@ -137,7 +137,17 @@ def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
 
 def corresponds(template, pose) -> bool:
     """True if ``pose`` shares ``template``'s vertex order: same vertex count and, when
-    both have faces, the same faces (poses of one rigged character)."""
+    both have faces, the same faces (poses of one rigged character).
+
+    Parameters
+    ----------
+    template, pose : (V, F) or (V,) tuples
+        ``V`` (n, 3) float, ``F`` (m, 3) int (may be missing or empty).
+
+    Returns
+    -------
+    bool
+    """
     Vs, Fs = template[0], template[1] if len(template) > 1 else None
     Vp, Fp = pose[0], pose[1] if len(pose) > 1 else None
     if len(Vs) != len(Vp):

@@ -103,6 +103,21 @@ def template_cage(rig, *, kind: str = "artist", faces: int = 196, seed: int = 0)
 def posed_cage(rig, cage_v, cage_f, pose, neighbours: int = 8) -> np.ndarray:
     """The cage moved by the rig's skinning into ``pose`` (module docstring), checked.
 
+    Parameters
+    ----------
+    rig : cagekit.datasets.humanoid.Rig
+    cage_v : (k, 3) array_like of float
+        The cage around the rig's rest pose.
+    cage_f : (m, 3) array_like of int
+    pose : dict[str, array_like]
+        Joint rotations, as :meth:`~cagekit.datasets.humanoid.Rig.pose` takes them.
+    neighbours : int, default 8
+        Template vertices whose mean skinning weights a cage vertex takes.
+
+    Returns
+    -------
+    (k, 3) float64
+
     Raises
     ------
     CageError

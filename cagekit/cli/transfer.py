@@ -49,8 +49,9 @@ AUTO = "auto"
 @click.option("--align", type=click.Choice(["box", "similarity"]), default="box",
               show_default=True, help="How the two rest poses are aligned before the fit.")
 @click.option("--cage-faces", default=200, show_default=True,
-              type=click.IntRange(min=80, max=100_000),
-              help="Face budget when TEMPLATE_CAGE is 'auto'.")
+              type=click.IntRange(min=80, max=10_000),
+              help="Face budget when TEMPLATE_CAGE is 'auto' (the character fit takes "
+                   "cages of up to 5,000 vertices).")
 @click.option("--grid", "grid_path", type=click.Path(dir_okay=False), default=None,
               help="Also write a PNG: template poses above, transferred character below.")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0))
