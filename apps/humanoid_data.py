@@ -186,41 +186,19 @@ def write(out_dir, *, poses: int = 20, train_poses: int = 1000, seed: int = 0,
                        *(f"truth/{b}" for b in (*bodies, *novel))):
             (out / folder).mkdir(parents=True, exist_ok=True)
         template = humanoid.rig("template", resolution=resolution)
-        F = template.faces
-        io.save_mesh(out / "template.obj", template.vertices, F)
+        io.save_mesh(out / "template.obj", template.vertices, template.faces)
         cage_v, cage_f = template_cage(template, kind=cage, faces=cage_faces, seed=seed)
         io.save_mesh(out / "template_cage.obj", cage_v, cage_f)
         save_landmarks(out / "template_landmarks.json", landmarks_of(template, names))
-        rigs = {body: humanoid.rig(body, resolution=resolution) for body in bodies}
-        for body, rig in rigs.items():
-            io.save_mesh(out / "characters" / f"{body}.obj", rig.vertices, F)
-            save_landmarks(out / "characters" / f"{body}_landmarks.json",
-                           landmarks_of(rig, names))
-        chars = {name: characters.character(name, labels=names, seed=seed) for name in novel}
-        for name, char in chars.items():
-            io.save_mesh(out / "characters" / f"{name}.obj", char.vertices, char.faces)
-            save_picked(out / "characters" / f"{name}.picked", char.landmarks)
-            io.save_mesh(out / "truth" / name / "t_pose.obj", char.truth({}), char.faces)
-        for i in range(poses):
-            pose = humanoid.random_pose(TEST_POSE_SEED + i)
-            posed = template.pose(pose)
-            io.save_mesh(out / "poses" / f"pose_{i:03d}.obj", posed, F)
-            for body, rig in rigs.items():
-                io.save_mesh(out / "truth" / body / f"pose_{i:03d}.obj", rig.pose(pose), F)
-            for name, char in chars.items():
-                io.save_mesh(out / "truth" / name / f"pose_{i:03d}.obj", char.truth(pose),
-                             char.faces)
-        for i, angles in enumerate(REVERSE_POSES if reverse else ()):
-            pose = characters.rest_pose(**angles)
-            stem = out / "reverse" / f"pose_{i:02d}"
-            io.save_mesh(f"{stem}.obj", template.pose(pose), F)
-            io.save_mesh(f"{stem}_cage.obj", posed_cage(template, cage_v, cage_f, pose),
-                         cage_f)
-            save_landmarks(f"{stem}_landmarks.json",
-                           landmarks_of(template, names, template.pose(pose)))
+        posable = _write_characters(out, names, bodies, novel, resolution, template.faces,
+                                    seed)
+        _write_test_poses(out, template, posable, poses)
+        if reverse:
+            _write_reverse_examples(out, template, (cage_v, cage_f), names)
         for i in range(train_poses):
             pose = humanoid.random_pose(seed + i)
-            io.save_mesh(out / "train" / f"pose_{i:04d}.ply", template.pose(pose), F)
+            io.save_mesh(out / "train" / f"pose_{i:04d}.ply", template.pose(pose),
+                         template.faces)
     summary = {"out_dir": str(out), "bodies": list(bodies), "characters": list(novel),
                "poses": poses, "reverse_poses": len(REVERSE_POSES) if reverse else 0,
                "train_poses": train_poses, "landmarks": len(names), "cage": cage,
@@ -230,6 +208,45 @@ def write(out_dir, *, poses: int = 20, train_poses: int = 1000, seed: int = 0,
         json.dump(summary, fh, indent=2)
         fh.write("\n")
     return summary
+
+
+def _write_characters(out, names, bodies, novel, resolution, faces, seed) -> dict:
+    """The bodies (template mesh) and the novel characters in rest pose, their landmarks
+    and the novel ones' T-pose; returns name -> (pose function, faces)."""
+    posable = {}
+    for body in bodies:
+        rig = humanoid.rig(body, resolution=resolution)
+        io.save_mesh(out / "characters" / f"{body}.obj", rig.vertices, faces)
+        save_landmarks(out / "characters" / f"{body}_landmarks.json", landmarks_of(rig, names))
+        posable[body] = (rig.pose, faces)
+    for name in novel:
+        char = characters.character(name, labels=names, seed=seed)
+        io.save_mesh(out / "characters" / f"{name}.obj", char.vertices, char.faces)
+        save_picked(out / "characters" / f"{name}.picked", char.landmarks)
+        io.save_mesh(out / "truth" / name / "t_pose.obj", char.truth({}), char.faces)
+        posable[name] = (char.truth, char.faces)
+    return posable
+
+
+def _write_test_poses(out, template, posable, poses) -> None:
+    """The template in each test pose, and every character in it (the ground truth)."""
+    for i in range(poses):
+        pose = humanoid.random_pose(TEST_POSE_SEED + i)
+        io.save_mesh(out / "poses" / f"pose_{i:03d}.obj", template.pose(pose), template.faces)
+        for name, (pose_of, faces) in posable.items():
+            io.save_mesh(out / "truth" / name / f"pose_{i:03d}.obj", pose_of(pose), faces)
+
+
+def _write_reverse_examples(out, template, cage, names) -> None:
+    """Each of :data:`REVERSE_POSES`: the posed template, its skinned cage, its landmarks."""
+    cage_v, cage_f = cage
+    for i, angles in enumerate(REVERSE_POSES):
+        pose = characters.rest_pose(**angles)
+        posed = template.pose(pose)
+        stem = out / "reverse" / f"pose_{i:02d}"
+        io.save_mesh(f"{stem}.obj", posed, template.faces)
+        io.save_mesh(f"{stem}_cage.obj", posed_cage(template, cage_v, cage_f, pose), cage_f)
+        save_landmarks(f"{stem}_landmarks.json", landmarks_of(template, names, posed))
 
 
 @click.command(cls=Command, context_settings={"help_option_names": ["-h", "--help"]})

@@ -100,10 +100,7 @@ def run_direction(name, group, direction, template, cage, marks_t, character, ma
     fitter = dt.classical_fitter(Vt, cage_v, cage_f)
     rows, shown = [], []
     for i, ((Vp, Fp), truth) in enumerate(zip(examples, truths)):
-        outs, seconds = {}, {}
-        t0 = time.perf_counter()
-        outs["rest"] = Vc
-        seconds["rest"] = 0.0
+        outs, seconds = {"rest": Vc}, {"rest": 0.0}
         t0 = time.perf_counter()
         outs["nearest"] = nearest_copy(Vt, Vp, Vc, char.fit.alignment)
         seconds["nearest"] = time.perf_counter() - t0
