@@ -29,7 +29,7 @@ import scipy.sparse.linalg
 from cagekit.alignment import Similarity
 from cagekit.errors import InputError
 from cagekit.frame import Frame
-from cagekit.geometry import as_vertices
+from cagekit.geometry import as_vertices, polar
 
 __all__ = ["RULES", "face_gradients", "polar", "transfer_offsets", "transfer_pose",
            "transfer_cage"]
@@ -77,34 +77,6 @@ def face_gradients(rest_v, deformed_v, faces) -> np.ndarray:
     rest = _frames(as_vertices(rest_v, "rest_v"), F)
     moved = _frames(as_vertices(deformed_v, "deformed_v"), F)
     return moved @ np.linalg.inv(rest)
-
-
-def polar(T) -> tuple[np.ndarray, np.ndarray]:
-    """Polar decomposition ``T = R S`` of (m, 3, 3) matrices (SVD).
-
-    Returns
-    -------
-    R : (m, 3, 3) float64
-        Proper rotations (an inverted face keeps ``det R = +1``; its reflection goes
-        into ``S``).
-    S : (m, 3, 3) float64
-        Symmetric.
-
-    Examples
-    --------
-    >>> c, s = np.cos(0.3), np.sin(0.3)
-    >>> R0 = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
-    >>> R, S = polar((R0 @ np.diag([2.0, 1.0, 0.5]))[None])
-    >>> bool(np.allclose(R[0], R0)), bool(np.allclose(S[0], np.diag([2.0, 1.0, 0.5])))
-    (True, True)
-    """
-    T = np.asarray(T, dtype=np.float64)
-    U, sigma, Vt = np.linalg.svd(T)
-    D = np.ones_like(sigma)
-    D[:, 2] = np.where(np.linalg.det(U @ Vt) < 0, -1.0, 1.0)
-    R = U @ (D[:, :, None] * Vt)
-    S = np.swapaxes(Vt, 1, 2) @ ((D * sigma)[:, :, None] * Vt)
-    return R, S
 
 
 def transfer_offsets(template_cage_v, deformed_template_cage_v, character_cage_v,

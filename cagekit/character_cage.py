@@ -45,7 +45,7 @@ from cagekit.cage import (
 from cagekit.coords import bind
 from cagekit.errors import CageError, CageFitError, InputError
 from cagekit.frame import Frame
-from cagekit.geometry import as_vertices
+from cagekit.geometry import as_vertices, polar
 
 __all__ = ["CharacterCageFit", "fit_character_cage", "cage_checks", "LANDMARK_WEIGHT",
            "MARGIN"]
@@ -153,8 +153,6 @@ class _CageARAP:
     """Local/global as-similar-as-possible fitting of one cage with soft linear rows."""
 
     def __init__(self, rest_v, faces):
-        self.rest = rest_v
-        self.faces = faces
         self.edges = unique_edges(faces)
         k, E = len(rest_v), len(self.edges)
         D = np.zeros((E, k))
@@ -172,11 +170,10 @@ class _CageARAP:
         S = np.zeros((len(C), 3, 3))
         np.add.at(S, self.edges[:, 0], cov)
         np.add.at(S, self.edges[:, 1], cov)
-        U, sigma, Vt = np.linalg.svd(S)
-        d = np.ones_like(sigma)
-        d[:, 2] = np.where(np.linalg.det(U @ Vt) < 0, -1.0, 1.0)
-        R = np.swapaxes(Vt, 1, 2) @ (d[:, :, None] * np.swapaxes(U, 1, 2))
-        scale = (d * sigma).sum(axis=1) / np.maximum(self.spread, 1e-300)
+        # S = sum r c^T; the rotation maximising tr(R S) is that of S^T's polar
+        # decomposition, and the best scale is the trace of its stretch over sum |r|^2
+        R, stretch = polar(np.swapaxes(S, 1, 2))
+        scale = np.trace(stretch, axis1=1, axis2=2) / np.maximum(self.spread, 1e-300)
         return R * np.clip(scale, SCALE_RANGE[0], SCALE_RANGE[1])[:, None, None]
 
     def solve(self, C, rows, targets, weights) -> np.ndarray:

@@ -37,6 +37,7 @@ __all__ = [
     "cotangent_laplacian",
     "face_areas",
     "orient_normals",
+    "polar",
     "pca_normals",
     "pca_planes",
     "point_to_plane",
@@ -623,3 +624,31 @@ def point_to_plane(
     """
     V, normals, centroids = _oriented_planes(V, F, k, neighborhoods)
     return np.einsum("ij,ij->i", V - centroids, normals)
+
+
+def polar(T) -> tuple[np.ndarray, np.ndarray]:
+    """Polar decomposition ``T = R S`` of (m, 3, 3) matrices (SVD).
+
+    Returns
+    -------
+    R : (m, 3, 3) float64
+        Proper rotations (an inverted face keeps ``det R = +1``; its reflection goes
+        into ``S``).
+    S : (m, 3, 3) float64
+        Symmetric.
+
+    Examples
+    --------
+    >>> c, s = np.cos(0.3), np.sin(0.3)
+    >>> R0 = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+    >>> R, S = polar((R0 @ np.diag([2.0, 1.0, 0.5]))[None])
+    >>> bool(np.allclose(R[0], R0)), bool(np.allclose(S[0], np.diag([2.0, 1.0, 0.5])))
+    (True, True)
+    """
+    T = np.asarray(T, dtype=np.float64)
+    U, sigma, Vt = np.linalg.svd(T)
+    D = np.ones_like(sigma)
+    D[:, 2] = np.where(np.linalg.det(U @ Vt) < 0, -1.0, 1.0)
+    R = U @ (D[:, :, None] * Vt)
+    S = np.swapaxes(Vt, 1, 2) @ ((D * sigma)[:, :, None] * Vt)
+    return R, S
