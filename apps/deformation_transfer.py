@@ -110,8 +110,7 @@ def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
 
     match = match_landmarks(template_landmarks, character_landmarks,
                             source_name=template_name, target_name=character_name)
-    cage_v = as_vertices(cage_v, "cage_v")
-    cage_f = check_cage(cage_v, cage_f)
+    cage_v = as_vertices(cage_v, "cage_v")  # checked by the fit
     character_v = as_vertices(character_v, "character_v")
     names = f"{template_name or 'the template'} and {character_name or 'the character'}"
     if align == "box":
@@ -129,7 +128,8 @@ def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
         raise InputError(f"align must be 'box' or 'similarity', got {align!r}")
     fit = fit_character_cage(cage_v, cage_f, match.source, match.target, character_v,
                              alignment=alignment)
-    weights = bind(character_v, fit.cage_v, fit.cage_f).weights
+    # the fit checked this cage (closed, no crossing, every vertex inside)
+    weights = bind(character_v, fit.cage_v, fit.cage_f, check=False).weights
     return CharacterCage(vertices=character_v, faces=np.asarray(character_f, np.int64),
                          template_cage_v=cage_v, cage_v=fit.cage_v, cage_f=fit.cage_f,
                          fit=fit, match=match, weights=weights)
@@ -236,7 +236,7 @@ def classical_fitter(template_v, cage_v, cage_f, *, smoothness: float = SMOOTHNE
     """
     cage_v = as_vertices(cage_v, "cage_v")
     cage_f = check_cage(cage_v, cage_f)
-    W = bind(as_vertices(template_v, "template_v"), cage_v, cage_f).weights
+    W = bind(as_vertices(template_v, "template_v"), cage_v, cage_f, check=False).weights
     L = cotangent_laplacian(cage_v, cage_f).toarray()
     r = np.sqrt(float(smoothness))
     solve = np.linalg.pinv(np.vstack([W, r * L]))

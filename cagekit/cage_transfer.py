@@ -171,7 +171,8 @@ def transfer_pose(template_cage_v, deformed_template_cage_v, character_cage_v, c
     rest_edges = (D @ Cs).reshape(-1, 3, 3)
     target = np.einsum("fij,fej->fei", G, rest_edges).reshape(-1, 3)
     offsets = transfer_offsets(Cs, Ct, Cc, Similarity.identity())
-    weights = _root_weights(np.linalg.norm(Ct - Cs, axis=1), F)
+    parts = _vertex_components(len(Cs), F)
+    weights = _root_weights(np.linalg.norm(Ct - Cs, axis=1), parts)
     # min |D X - target|^2 + eps sum_i w_i |x_i - offsets_i|^2: the tiny term fixes each
     # component's translation (its weighted mean is the offsets rule's), nothing else
     eps = 1e-8 * 6.0 * len(F) / weights.sum()
@@ -179,7 +180,7 @@ def transfer_pose(template_cage_v, deformed_template_cage_v, character_cage_v, c
     rhs = D.T @ target + eps * weights[:, None] * offsets
     X = scipy.sparse.linalg.splu(K).solve(rhs)
     # each component's weighted mean exactly (the eps term leaves an O(eps) error)
-    for part in _vertex_components(len(Cs), F):
+    for part in parts:
         w = weights[part]
         X[part] += (w @ offsets[part] - w @ X[part]) / w.sum()
     if not np.isfinite(X).all():
@@ -195,10 +196,11 @@ def _vertex_components(k, F) -> list[np.ndarray]:
     return [np.unique(F[labels == label]) for label in np.unique(labels)]
 
 
-def _root_weights(displacement, F) -> np.ndarray:
-    """1 on the :data:`ROOT_SHARE` least-displaced vertices of each component, else 0."""
+def _root_weights(displacement, parts) -> np.ndarray:
+    """1 on the :data:`ROOT_SHARE` least-displaced vertices of each component (``parts``,
+    vertex index arrays), else 0."""
     weights = np.zeros(len(displacement))
-    for part in _vertex_components(len(displacement), F):
+    for part in parts:
         count = max(1, int(np.ceil(ROOT_SHARE * len(part))))
         weights[part[np.argsort(displacement[part], kind="stable")[:count]]] = 1.0
     return weights
