@@ -91,32 +91,45 @@ def fit_summary(char, height) -> dict:
             "self_intersecting_faces": fit.checks["self_intersecting_faces"]}
 
 
+def template_cages(template, cage, examples, model, seed) -> list[dict]:
+    """Per example, the template's deformed cage (classical, and learned with a model) and
+    the seconds each took: once for every character that uses the same examples."""
+    (Vt, Ft), (cage_v, cage_f) = template, cage
+    fitter = dt.classical_fitter(Vt, cage_v, cage_f)
+    out = []
+    for Vp, Fp in examples:
+        t0 = time.perf_counter()
+        entry = {"classical": dt.template_cage_classical((Vt, Ft), (cage_v, cage_f),
+                                                         (Vp, Fp), seed=seed, fitter=fitter)}
+        entry["classical_seconds"] = time.perf_counter() - t0
+        if model is not None:
+            t0 = time.perf_counter()
+            entry["learned"] = dt.template_cage_learned(model, Vt, cage_v, (Vp, Fp))
+            entry["learned_seconds"] = time.perf_counter() - t0
+        out.append(entry)
+    return out
+
+
 def run_direction(name, group, direction, template, cage, marks_t, character, marks_c,
-                  examples, truths, model, seed):
+                  examples, truths, deformed):
     """Rows (one per example and method) and the fit summary of one character."""
-    (Vt, Ft), (cage_v, cage_f), (Vc, Fc) = template, cage, character
+    (Vt, _), (cage_v, cage_f), (Vc, Fc) = template, cage, character
     char = dt.fit_character(Vt, cage_v, cage_f, marks_t, Vc, Fc, marks_c)
     height = float(np.ptp(Vc[:, 1]))
-    fitter = dt.classical_fitter(Vt, cage_v, cage_f)
     rows, shown = [], []
-    for i, ((Vp, Fp), truth) in enumerate(zip(examples, truths)):
+    for i, ((Vp, Fp), truth, cages) in enumerate(zip(examples, truths, deformed)):
         outs, seconds = {"rest": Vc}, {"rest": 0.0}
         t0 = time.perf_counter()
         outs["nearest"] = nearest_copy(Vt, Vp, Vc, char.fit.alignment)
         seconds["nearest"] = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        deformed = dt.template_cage_classical((Vt, Ft), (cage_v, cage_f), (Vp, Fp),
-                                              seed=seed, fitter=fitter)
-        t_cage = time.perf_counter() - t0
         for rule in ("offsets", "pose"):
             t0 = time.perf_counter()
-            outs[rule] = dt.transfer(char, deformed, rule)
-            seconds[rule] = t_cage + time.perf_counter() - t0
-        if model is not None:
+            outs[rule] = dt.transfer(char, cages["classical"], rule)
+            seconds[rule] = cages["classical_seconds"] + time.perf_counter() - t0
+        if "learned" in cages:
             t0 = time.perf_counter()
-            learned = dt.template_cage_learned(model, Vt, cage_v, (Vp, Fp))
-            outs["learned"] = dt.transfer(char, learned, "pose")
-            seconds["learned"] = time.perf_counter() - t0
+            outs["learned"] = dt.transfer(char, cages["learned"], "pose")
+            seconds["learned"] = cages["learned_seconds"] + time.perf_counter() - t0
         for method, X in outs.items():
             err, dcl = scores(Vc, Fc, truth, X)
             rows.append({"character": name, "group": group, "direction": direction,
@@ -183,6 +196,15 @@ def main(argv=None) -> dict:
     examples = [io.load_mesh(p) for p in pose_paths]
     reverse = sorted((data / "reverse").glob("pose_??.obj"))
 
+    forward_cages = template_cages(template, cage, examples, model, args.seed)
+    reverse_examples = []  # (posed template, its cage, its landmarks, its cage -> rest)
+    for path in reverse:
+        posed = io.load_mesh(path)
+        posed_cage = io.load_mesh(path.with_name(f"{path.stem}_cage.obj"))
+        reverse_examples.append((posed, posed_cage,
+                                 load_landmarks(path.with_name(f"{path.stem}_landmarks.json")),
+                                 template_cages(posed, posed_cage, [template], None,
+                                                args.seed)))
     rows, fits, pictures = [], {}, {}
     groups = [(b, "same rest pose") for b in manifest["bodies"]]
     groups += [(c, "own rest pose") for c in manifest.get("characters", [])]
@@ -192,7 +214,7 @@ def main(argv=None) -> dict:
         try:
             r, fit, shown, _ = run_direction(name, group, "forward", template, cage,
                                              marks_t, character, marks_c, examples, truths,
-                                             model, args.seed)
+                                             forward_cages)
         except CageFitError as exc:
             print(f"{name}: {exc}")
             fits[(name, "forward")] = {"valid": False, "error": str(exc)}
@@ -204,14 +226,11 @@ def main(argv=None) -> dict:
         if group == "same rest pose":
             continue
         t_pose = io.load_mesh(data / "truth" / name / "t_pose.obj")[0]
-        for i, path in enumerate(reverse):
-            posed = io.load_mesh(path)
-            posed_cage = io.load_mesh(path.with_name(f"{path.stem}_cage.obj"))
-            marks_p = load_landmarks(path.with_name(f"{path.stem}_landmarks.json"))
+        for i, (posed, posed_cage, marks_p, cages) in enumerate(reverse_examples):
             try:
                 r, fit, shown, _ = run_direction(name, group, "reverse", posed, posed_cage,
                                                  marks_p, character, marks_c, [template],
-                                                 [t_pose], None, args.seed)
+                                                 [t_pose], cages)
             except CageFitError as exc:
                 print(f"{name}: reverse {i}: {exc}")
                 fits[(name, f"reverse {i}")] = {"valid": False, "error": str(exc)}
