@@ -4,8 +4,9 @@ The bodies of :mod:`cagekit.datasets.humanoid` share the template's T rest pose,
 and its landmark vertices, so a transfer benchmark on them cannot see what goes wrong on a
 real character. Each :class:`Character` here has, from the same rig (so with ground truth):
 
-- a rest pose of its own (:data:`CHARACTERS`): arms 15-60 degrees above or below the
-  template's T, legs apart, a slight torso turn, or the T itself;
+- a rest pose of its own (:data:`CHARACTERS`): arms 15-76 degrees above or below the
+  template's T (``arms_down``: a stocky body whose hands hang a few centimetres from its
+  hips), legs apart, a slight torso turn, or the T itself;
 - a mesh of its own: the rig at another resolution with its vertices shuffled (another
   vertex count and order), or for ``robot_boxes`` one open box per part (25 boxes, no
   lids, each moved rigidly by its part's main joint);
@@ -96,6 +97,7 @@ CHARACTERS: dict[str, tuple] = {
     "relaxed": (humanoid.random_body(11), 0.9, {"arms": -60, "legs": 12, "turn": 10,
                                                 "elbows": 15}, "remeshed"),
     "robot_boxes": ("robot", 1.0, {"arms": -37, "legs": 4}, "boxes"),
+    "arms_down": ("stocky", 0.9, {"arms": -76}, "remeshed"),
 }
 
 
