@@ -3,18 +3,21 @@
 The template (rest pose, cage ``C_s``, example poses as meshes) and a novel character (rest
 pose, landmarks whose labels match the template's): the character's cage ``C_c`` is fitted
 once by :func:`cagekit.character_cage.fit_character_cage` (landmark reproduction, enclosure,
-no self-intersection: a valid cage or an error); each pose's template cage ``C_st`` comes
-from a per-pair fit (classical) or a trained fixed-source network (``--model``); the
-character's cage moves by a :mod:`cagekit.cage_transfer` rule, ``"pose"`` (default: the
-template's rotations with the character's own stretch, so a T-pose example gives a T-pose
-whatever the character's rest pose) or ``"offsets"`` (the paper's ``C_c + A (C_st - C_s)``,
-``A`` the linear part of the template-to-character alignment, ``--align box`` or
-``similarity``). A pose with the template's vertex count is taken to share its vertex
-order and is fitted exactly by linear least squares with every vertex as a correspondence
-and a small cage-Laplacian term (:data:`SMOOTHNESS`); other poses use
-:func:`cagekit.deform` with Chamfer. Labels in one file only are reported, never dropped
-silently; fewer than 4 shared labels is an error. The command is ``cagekit transfer``
-(:mod:`cagekit.cli.transfer`). See docs/architecture.md.
+no self-intersection: a valid cage or an error) and the character bound to it by
+:func:`cagekit.surface_binding.bind_surface` (mean value coordinates, mended along the mesh
+where the cage folds between a limb and the body it touches; the cage's result made as
+rigid as possible where it tears the mesh, :mod:`cagekit.robust_arap`); each pose's template cage
+``C_st`` comes from a per-pair fit (classical) or a trained fixed-source network
+(``--model``); the character's cage moves by a :mod:`cagekit.cage_transfer` rule,
+``"pose"`` (default: the template's rotations with the character's own stretch, so a
+T-pose example gives a T-pose whatever the character's rest pose) or ``"offsets"`` (the
+paper's ``C_c + A (C_st - C_s)``, ``A`` the linear part of the template-to-character
+alignment, ``--align box`` or ``similarity``). A pose with the template's vertex count is
+taken to share its vertex order and is fitted exactly by linear least squares with every
+vertex as a correspondence and a small cage-Laplacian term (:data:`SMOOTHNESS`); other
+poses use :func:`cagekit.deform` with Chamfer. Labels in one file only are reported, never
+dropped silently; fewer than 4 shared labels is an error. The command is ``cagekit
+transfer`` (:mod:`cagekit.cli.transfer`). See docs/architecture.md.
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from cagekit.errors import InputError
 from cagekit.frame import normalize
 from cagekit.geometry import as_vertices, cotangent_laplacian
 from cagekit.landmarks import LandmarkMatch, match_landmarks
+from cagekit.surface_binding import SurfaceBinding, bind_surface, check_coupling
 
 __all__ = ["CharacterCage", "fit_character", "corresponds", "check_model",
            "template_cage_classical", "classical_fitter", "template_cage_learned",
@@ -60,8 +64,9 @@ class CharacterCage:
     fit : cagekit.character_cage.CharacterCageFit
         Its landmark errors, consistency, checks and alignment.
     match : cagekit.landmarks.LandmarkMatch
-    weights : (n, k) float64
-        The character's mean value coordinates in ``C_c``.
+    binding : cagekit.surface_binding.SurfaceBinding
+        The character bound to ``C_c``: mean value coordinates, mended along the mesh
+        where the cage folds between touching parts.
     """
 
     vertices: np.ndarray
@@ -71,7 +76,7 @@ class CharacterCage:
     cage_f: np.ndarray
     fit: CharacterCageFit
     match: LandmarkMatch
-    weights: np.ndarray
+    binding: SurfaceBinding
 
 
 def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
@@ -104,7 +109,9 @@ def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
     InputError
         Too few shared labels, a bad cage, shapes that cannot be aligned.
     CageFitError
-        No valid character cage (the message says what failed).
+        No valid character cage, or one folded between touching parts over most of the
+        character (:func:`cagekit.surface_binding.check_coupling`; the message says what
+        failed).
     """
     from cagekit.alignment import box_alignment, similarity_alignment
 
@@ -130,9 +137,12 @@ def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
                              alignment=alignment)
     # the fit checked this cage (closed, no crossing, every vertex inside)
     weights = bind(character_v, fit.cage_v, fit.cage_f, check=False).weights
+    binding = bind_surface(character_v, character_f, fit.cage_v, fit.cage_f, weights=weights)
+    fit.checks["coupled"] = check_coupling(binding)
+    fit.checks["mended"] = float(binding.mended.mean())
     return CharacterCage(vertices=character_v, faces=np.asarray(character_f, np.int64),
                          template_cage_v=cage_v, cage_v=fit.cage_v, cage_f=fit.cage_f,
-                         fit=fit, match=match, weights=weights)
+                         fit=fit, match=match, binding=binding)
 
 
 def corresponds(template, pose) -> bool:
@@ -285,7 +295,7 @@ def template_cage_learned(model, template_v, cage_v, pose) -> np.ndarray:
 
 
 def transfer(character: CharacterCage, deformed_template_cage_v,
-             rule: str = "pose") -> np.ndarray:
+             rule: str = "pose", *, refine: bool = True) -> np.ndarray:
     """The character deformed like the template.
 
     Parameters
@@ -296,6 +306,9 @@ def transfer(character: CharacterCage, deformed_template_cage_v,
         ``C_st`` from :func:`template_cage_classical` or :func:`template_cage_learned`.
     rule : {"pose", "offsets"}, default "pose"
         How the template cage's motion is carried (:mod:`cagekit.cage_transfer`).
+    refine : bool, default True
+        Make the cage's result as rigid as possible where it tears the mesh
+        (:meth:`cagekit.surface_binding.SurfaceBinding.deform`).
 
     Returns
     -------
@@ -304,7 +317,7 @@ def transfer(character: CharacterCage, deformed_template_cage_v,
     """
     cage = transfer_cage(rule, character.template_cage_v, deformed_template_cage_v,
                          character.cage_v, character.cage_f, character.fit.alignment)
-    X = character.weights @ cage
+    X = character.binding.deform(cage, refine=refine)
     if not np.isfinite(X).all():
         raise FloatingPointError("the transfer produced NaN or inf positions")
     return X

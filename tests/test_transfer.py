@@ -16,6 +16,7 @@ from cagekit.cli import main as cagekit_main
 from cagekit.coords import bind
 from cagekit.errors import InputError
 from cagekit.landmarks import load_landmarks, save_landmarks
+from cagekit.surface_binding import bind_surface
 
 
 @pytest.fixture(scope="module")
@@ -49,6 +50,8 @@ def test_end_to_end_transfer_beats_the_rest_pose(data, tmp_path):
     cage = report["character_cage"]
     assert cage["valid"] and cage["volume"] > 0 and cage["self_intersecting_faces"] == 0
     assert cage["outside"] == 0 and cage["problems"] == []
+    assert cage["coupled"] == 0.0  # a body in the template's rest pose: nothing touches
+    assert fit["rounds"] >= 0
     saved = json.loads((tmp_path / "res" / "report.json").read_text())
     assert saved["mode"] == "classical" and saved["rule"] == "pose"
     assert (tmp_path / "grid.png").stat().st_size > 10_000
@@ -102,7 +105,9 @@ def test_similar_copy_of_the_template_moves_like_the_template(data, rule):
     np.testing.assert_allclose(char.cage_v, A.apply(cage_v), atol=1e-8)
     Vp, Fp = io.load_mesh(data[0] / "poses" / "pose_000.obj")
     C = dt.template_cage_classical((Vt, Ft), (cage_v, cage_f), (Vp, Fp))
-    expected = A.apply(bind(Vt, cage_v, cage_f).weights @ C)
+    # the template bound as a character is (mean value coordinates, mended where they
+    # see through the cage's folds)
+    expected = A.apply(bind_surface(Vt, Ft, cage_v, cage_f).deform(C))
     np.testing.assert_allclose(dt.transfer(char, C, rule), expected, atol=1e-7)
 
 
@@ -161,7 +166,7 @@ def test_a_cage_that_cannot_be_fitted_is_one_line_and_writes_nothing(data, tmp_p
     # reproduces them without folding, and the command says so
     out, _ = data
     marks = load_landmarks(out / "characters" / "stocky_landmarks.json")
-    mirrored = {k: v * np.array([-1.0, 1.0, -1.0]) for k, v in marks.items()}
+    mirrored = {k: v * np.array([-1.0, 1.0, 1.0]) for k, v in marks.items()}
     save_landmarks(tmp_path / "mirrored.json", mirrored)
     inputs = _inputs(out)
     inputs[4] = tmp_path / "mirrored.json"
@@ -171,6 +176,24 @@ def test_a_cage_that_cannot_be_fitted_is_one_line_and_writes_nothing(data, tmp_p
     assert len(lines) == 1 and "no valid character cage" in lines[0], lines
     assert str(out / "characters" / "stocky.obj") in lines[0]  # the file it is about
     assert not (tmp_path / "res").exists()
+
+
+def test_a_binding_through_thin_folds_is_one_line_and_writes_nothing(data, tmp_path,
+                                                                    monkeypatch):
+    # what a character bound through its cage's folds over most of its surface gets
+    # (tests/test_surface_binding.py shows the measure on a thin slot); here every
+    # binding is declared so
+    import cagekit.surface_binding as sb
+
+    monkeypatch.setattr(sb, "MAX_COUPLED", -1.0)
+    out, _ = data
+    result = _run([*_inputs(out), out / "poses", "-o", tmp_path / "res"])
+    assert result.exit_code == 2, result.output
+    lines = [line for line in result.stderr.strip().splitlines() if "warning:" not in line]
+    assert len(lines) == 1 and "folds so thinly between touching parts" in lines[0], lines
+    assert str(out / "characters" / "stocky.obj") in lines[0]  # the file it is about
+    assert not (tmp_path / "res").exists()
+
 
 
 def test_a_cage_vertex_no_face_uses_is_one_line_naming_the_cage(data, tmp_path):

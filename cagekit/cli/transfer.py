@@ -114,9 +114,12 @@ def transfer(ctx, template, template_cage, template_landmarks, character,
         emit_json(report)
     else:
         fit = char.fit
+        mended = fit.checks["mended"]
         click.echo(f"wrote {len(rows)} pose(s), character_cage.obj and report.json to "
-                   f"{out}; character cage valid ({fit.repairs} repair round(s)), "
-                   f"largest landmark error {fit.landmark_errors.max():.3g}")
+                   f"{out}; character cage valid ({fit.rounds} enclosure round(s)), "
+                   f"largest landmark error {fit.landmark_errors.max():.3g}"
+                   + (f", {100 * mended:.1f}% of the vertices bound along the mesh"
+                      if mended else ""))
 
 
 def _pose_paths(poses) -> list[Path]:
@@ -260,7 +263,7 @@ def _report(out, char, rows, seconds, start, template, template_cage, character,
                       "character_only": char.match.target_only},
         "character_cage_fit": {
             "consistency": fit.consistency, "initial_consistency": fit.initial_consistency,
-            "iterations": fit.iterations, "repairs": fit.repairs,
+            "iterations": fit.iterations, "rounds": fit.rounds,
             "contacts": fit.contacts, "seconds": fit.seconds,
             "alignment": fit.alignment.to_dict()},
         "landmark_errors": dict(zip(char.match.labels, fit.landmark_errors.tolist())),
