@@ -4,12 +4,13 @@ For each character of Debian's ``sweethome3d-furniture`` named below, the templa
 :mod:`cagekit.datasets.humanoid` is fitted to the character's surface (its height, a
 width and depth scale, a centre, and the rest pose: arms raised or lowered, elbows, legs
 apart; Powell on the symmetric Chamfer distance between the posed rig and 4,000 surface
-samples), each wanted landmark of the fitted rig is snapped to the nearest point of the
-character's surface that faces the same way (normals within 70 degrees: an arm's inner
-point lands on the arm, not on the torso beside it), and the points are written as a Thea
-``.picked`` file (face index, barycentric coordinates, label, position), the way a person
-clicking in Thea would. A
-picture of each fit goes to ``out/characters/``. Run from the repository root::
+samples; for each arm length of :data:`ARM_RATIOS`, the best kept: a long coat otherwise
+draws the hands' landmarks down onto its hem), each wanted landmark of the fitted rig is
+snapped to the nearest point of the character's surface that faces the same way (normals
+within 70 degrees: an arm's inner point lands on the arm, not on the torso beside it), and
+the points are written as a Thea ``.picked`` file (face index, barycentric coordinates,
+label, position), the way a person clicking in Thea would. A picture of each fit goes to
+``out/characters/``. Run from the repository root::
 
     python data/place_character_landmarks.py          # writes data/characters/*.picked
     python data/place_character_landmarks.py --out DIR
@@ -37,6 +38,8 @@ CHARACTERS = (("Reallusion", "male02", "reallusion_male02"),
 #: limb: what keeps each limb's cage apart from the torso's)
 CENTRE = ("head_top", "nose_tip", "chin", "head_back", "neck_front", "neck_back",
           "chest_front", "belly", "pelvis_front", "back_upper", "back_lower", "pelvis_back")
+#: shoulder-to-wrist lengths tried (fractions of the height; the template's is 0.33)
+ARM_RATIOS = (0.27, 0.30, 0.33)
 SIDE = ("waist", "hip_side", "chest", "shoulder_top", "upper_arm_mid_outer",
         "upper_arm_mid_inner", "upper_arm_dist_front", "forearm_mid_outer",
         "forearm_mid_inner", "forearm_dist_back", "hand_tip", "thumb_tip", "hand_back", "palm",
@@ -59,7 +62,16 @@ def find(catalog: str, stem: str):
 
 
 def fit_rig(V, F, seed: int = 0):
-    """The template rig fitted to a character: (rig, parameters, posed rig vertices)."""
+    """The template rig fitted to a character, the best of :data:`ARM_RATIOS`: (rig,
+    parameters, posed rig vertices)."""
+    fits = [_fit_rig(V, F, ratio, seed) for ratio in ARM_RATIOS]
+    for ratio, fit in zip(ARM_RATIOS, fits):
+        print(f"  arm ratio {ratio}: Chamfer cost {fit[3]:.4g}")
+    return min(fits, key=lambda fit: fit[3])[:3]
+
+
+def _fit_rig(V, F, arm_ratio: float, seed: int):
+    """(rig, parameters, posed rig vertices, Chamfer cost) for one arm length."""
     from scipy.optimize import minimize
     from scipy.spatial import cKDTree
 
@@ -67,7 +79,8 @@ def fit_rig(V, F, seed: int = 0):
     from cagekit.sampling import sample_surface
 
     height = float(np.ptp(V[:, 1]))
-    rig = humanoid.rig(humanoid.BodyShape(height=height), resolution=0.5)
+    rig = humanoid.rig(humanoid.BodyShape(height=height, arm_ratio=arm_ratio),
+                       resolution=0.5)
     samples = sample_surface(V, F, 4000, seed=seed)
     tree = cKDTree(samples)
     centre = 0.5 * (V.max(axis=0) + V.min(axis=0))
@@ -92,7 +105,7 @@ def fit_rig(V, F, seed: int = 0):
         + [(-0.1 * height, 0.1 * height)] * 2
     best = minimize(cost, x0, method="Powell", bounds=bounds,
                     options={"maxfev": 4000, "xtol": 1e-3, "ftol": 1e-9})
-    return rig, best.x, posed(best.x)
+    return rig, best.x, posed(best.x), float(best.fun)
 
 
 def snap(V, F, points, normals, names, seed: int = 0):
