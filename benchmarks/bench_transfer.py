@@ -15,12 +15,15 @@ joint rotations. Two directions:
 
 Methods, all in one run: ``rest`` (no transfer), ``nearest`` (each vertex moves like its
 nearest template vertex after the box alignment, scaled), ``offsets`` (the paper's rule),
-``pose`` (the pose-aware rule), ``learned`` (the pose rule on the template cage predicted by
-a fixed-source network, trained here with the documented command unless ``--model`` is
-given; forward only: the network's source is the rest template). Printed per method and
-character: mean vertex error against the ground truth in % of the character's height,
-dCotLap x1e3 (the metric of :mod:`cagekit.metrics`), seconds per pose; the character's cage
-fit is listed apart with its checks.
+``unrefined`` (the pose-aware rule, the cage's result as it is), ``pose`` (the pose-aware
+rule made as rigid as possible where it tears the mesh, the default), ``learned`` (the
+pose rule on the template cage predicted by a fixed-source network, trained here with the
+documented command unless ``--model`` is given; forward only: the network's source is the
+rest template). Printed per method and character: mean vertex error against the ground
+truth in % of the character's height, dCotLap x1e3 (the metric of :mod:`cagekit.metrics`),
+the worst vertices, the torn edges (:func:`torn_share`), seconds per pose; the character's
+cage fit is listed apart with its checks. The real characters (no ground truth): the cage
+fit, torn edges with and without the refinement, pictures.
 
 Usage::
 
@@ -46,12 +49,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from apps import deformation_transfer as dt  # noqa: E402
 from apps import humanoid_data  # noqa: E402
 from cagekit import io  # noqa: E402
+from cagekit.cage import unique_edges  # noqa: E402
 from cagekit.errors import CageFitError  # noqa: E402
 from cagekit.frame import normalize  # noqa: E402
 from cagekit.landmarks import load_landmarks  # noqa: E402
 from cagekit.metrics import dcotlap  # noqa: E402
 
-METHODS = ("rest", "nearest", "offsets", "pose", "learned")
+METHODS = ("rest", "nearest", "offsets", "unrefined", "pose", "learned")
 #: today's classical error on the bodies sharing the template's rest pose (issue 6)
 SAME_POSE_BASELINE = 2.193
 
@@ -71,24 +75,39 @@ def nearest_copy(template_v, pose_v, character_v, alignment) -> np.ndarray:
     return character_v + alignment.apply_vectors(pose_v[nn] - template_v[nn])
 
 
-def scores(rest_v, faces, truth_v, out_v) -> tuple[float, float]:
-    """(mean vertex error / height in %, dCotLap x1e3)."""
+def torn_share(rest_v, faces, out_v) -> float:
+    """The share of the mesh's edges torn: stretched over 4 times their rest length and to
+    over 2% of the height (the shards a person sees; no ground truth needed)."""
+    E = unique_edges(faces)
     height = float(np.ptp(rest_v[:, 1]))
-    err = float(np.linalg.norm(out_v - truth_v, axis=1).mean() / height * 100)
+    rest = np.linalg.norm(rest_v[E[:, 0]] - rest_v[E[:, 1]], axis=1)
+    now = np.linalg.norm(out_v[E[:, 0]] - out_v[E[:, 1]], axis=1)
+    return float(np.mean((now > 4 * rest) & (now > 0.02 * height))) if len(E) else 0.0
+
+
+def scores(rest_v, faces, truth_v, out_v) -> dict:
+    """Vertex error / height in %: mean, 99th percentile and largest (the mean does not
+    see a hand torn off, the largest does); dCotLap x1e3; torn edges in per mille."""
+    height = float(np.ptp(rest_v[:, 1]))
+    err = np.linalg.norm(out_v - truth_v, axis=1) / height * 100
     src_n = normalize(rest_v)[0]
     _, c, s = normalize(truth_v)
-    return err, dcotlap(src_n, faces, (out_v - c) / s) * 1e3
+    return {"error_pct": float(err.mean()), "p99_pct": float(np.quantile(err, 0.99)),
+            "max_pct": float(err.max()),
+            "dcotlap_x1e3": dcotlap(src_n, faces, (out_v - c) / s) * 1e3,
+            "torn_permille": 1e3 * torn_share(rest_v, faces, out_v)}
 
 
 def fit_summary(char, height) -> dict:
     fit = char.fit
-    return {"seconds": fit.seconds, "iterations": fit.iterations, "repairs": fit.repairs,
+    return {"seconds": fit.seconds, "iterations": fit.iterations, "rounds": fit.rounds,
             "contacts": fit.contacts, "landmarks": len(char.match.labels),
             "consistency": fit.consistency, "initial_consistency": fit.initial_consistency,
             "max_landmark_error_pct": float(fit.landmark_errors.max() / height * 100),
             "median_landmark_error_pct": float(np.median(fit.landmark_errors) / height * 100),
             "valid": bool(fit.checks["valid"]), "outside": fit.checks["outside"],
-            "self_intersecting_faces": fit.checks["self_intersecting_faces"]}
+            "self_intersecting_faces": fit.checks["self_intersecting_faces"],
+            "coupled": fit.checks["coupled"], "mended": fit.checks["mended"]}
 
 
 def template_cages(template, cage, examples, model, seed) -> list[dict]:
@@ -122,19 +141,19 @@ def run_direction(name, group, direction, template, cage, marks_t, character, ma
         t0 = time.perf_counter()
         outs["nearest"] = nearest_copy(Vt, Vp, Vc, char.fit.alignment)
         seconds["nearest"] = time.perf_counter() - t0
-        for rule in ("offsets", "pose"):
+        for method, rule, refine in (("offsets", "offsets", True), ("unrefined", "pose", False),
+                                     ("pose", "pose", True)):
             t0 = time.perf_counter()
-            outs[rule] = dt.transfer(char, cages["classical"], rule)
-            seconds[rule] = cages["classical_seconds"] + time.perf_counter() - t0
+            outs[method] = dt.transfer(char, cages["classical"], rule, refine=refine)
+            seconds[method] = cages["classical_seconds"] + time.perf_counter() - t0
         if "learned" in cages:
             t0 = time.perf_counter()
             outs["learned"] = dt.transfer(char, cages["learned"], "pose")
             seconds["learned"] = cages["learned_seconds"] + time.perf_counter() - t0
         for method, X in outs.items():
-            err, dcl = scores(Vc, Fc, truth, X)
             rows.append({"character": name, "group": group, "direction": direction,
-                         "example": i, "method": method, "error_pct": err,
-                         "dcotlap_x1e3": dcl, "seconds": seconds[method]})
+                         "example": i, "method": method, **scores(Vc, Fc, truth, X),
+                         "seconds": seconds[method]})
         if i < 5:
             shown.append({"example": (Vp, Fp), "truth": (truth, Fc),
                           "offsets": (outs["offsets"], Fc), "pose": (outs["pose"], Fc)})
@@ -287,6 +306,16 @@ def report(rows, fits, manifest, poses, reverse, learned) -> None:
                     d = mean(rows, "dcotlap_x1e3", method=m, **where)
                     cells.append("n/a" if np.isnan(e) else f"{e:.2f} ({d:.3f})")
                 print(f"{name:<12} " + " ".join(f"{c:>16}" for c in cells))
+            print(f"{direction}, {group}: worst vertices, error % height: 99th percentile "
+                  "(largest), the largest over examples")
+            _per_character(rows, names, methods, direction, group,
+                           lambda sel: f"{max(r['p99_pct'] for r in sel):.1f} "
+                                       f"({max(r['max_pct'] for r in sel):.1f})")
+            print(f"{direction}, {group}: torn edges per mille (stretched over 4x and to "
+                  "over 2% of the height), mean (largest) over examples")
+            _per_character(rows, names, methods, direction, group,
+                           lambda sel: f"{np.mean([r['torn_permille'] for r in sel]):.2f} "
+                                       f"({max(r['torn_permille'] for r in sel):.2f})")
     sec = {m: mean(rows, "seconds", method=m, direction="forward") for m in methods}
     print("\nseconds per pose (forward): " + ", ".join(f"{m} {s:.3f}" for m, s in sec.items()))
     print("\ncharacter cage fits")
@@ -295,11 +324,24 @@ def report(rows, fits, manifest, poses, reverse, learned) -> None:
             print(f"  {name:<12} {direction:<9} FAILED: {f['error']}")
             continue
         print(f"  {name:<12} {direction:<9} {f['seconds']:.2f} s, {f['iterations']} "
-              f"iterations, {f['repairs']} repairs, valid {f['valid']} (outside "
-              f"{100 * f['outside']:.2f}%, crossing faces {f['self_intersecting_faces']}), "
+              f"iterations, {f['rounds']} enclosure rounds, valid {f['valid']} (outside "
+              f"{100 * f['outside']:.2f}%, crossing faces {f['self_intersecting_faces']}, "
+              f"bound through folds {100 * f['coupled']:.2f}%, mended "
+              f"{100 * f['mended']:.2f}%), "
               f"landmark error max {f['max_landmark_error_pct']:.2f}% / median "
               f"{f['median_landmark_error_pct']:.2f}%, consistency "
               f"{f['initial_consistency']:.3g} -> {f['consistency']:.3g}")
+
+
+def _per_character(rows, names, methods, direction, group, cell) -> None:
+    """One line per character: ``cell(rows)`` of each method's rows ("n/a" for none)."""
+    for name in names:
+        cells = []
+        for m in methods:
+            sel = [r for r in rows if r["method"] == m and r["character"] == name
+                   and r["direction"] == direction and r["group"] == group]
+            cells.append(cell(sel) if sel else "n/a")
+        print(f"{name:<12} " + " ".join(f"{c:>16}" for c in cells))
 
 
 def targets(rows, fits, groups) -> dict:
@@ -364,6 +406,8 @@ def real_characters(template, cage, examples, folder) -> dict:
     fitter = dt.classical_fitter(Vt, cage_v, cage_f)
     deformed = [fitter(V) for V, _ in examples]
     out = {}
+    if folder:
+        folder.mkdir(parents=True, exist_ok=True)
     print("\nreal characters (sweethome3d-furniture)")
     for _, stem, name in CHARACTERS:
         model = found[stem]
@@ -374,12 +418,12 @@ def real_characters(template, cage, examples, folder) -> dict:
             char = dt.fit_character(Vt, cage_v, cage_f, marks_t, V, F, marks)
         except CageFitError as exc:
             seconds = time.perf_counter() - t0
-            rejected_v, rejected_f = exc.cage
-            crossing = self_intersecting_faces(rejected_v, rejected_f)
             out[name] = {"valid": False, "error": str(exc), "seconds": seconds,
                          "vertices": len(V), "credit": model.credit}
             print(f"  {name}: {len(V)} vertices, {seconds:.1f} s: {exc}")
-            if folder:
+            if folder and getattr(exc, "cage", None) is not None:
+                rejected_v, rejected_f = exc.cage
+                crossing = self_intersecting_faces(rejected_v, rejected_f)
                 path = folder / f"transfer_{name}.png"
                 render_grid(path, [[(V, F), (V, F)]],
                             cages=[[(rejected_v, rejected_f),
@@ -388,19 +432,48 @@ def real_characters(template, cage, examples, folder) -> dict:
                             size=(360, 420), views=((10, -80),))
                 print(f"  wrote {path}")
             continue
+        t0 = time.perf_counter()
+        raw = [(dt.transfer(char, C, "pose", refine=False), F) for C in deformed]
+        raw_seconds = (time.perf_counter() - t0) / len(deformed)
+        t0 = time.perf_counter()
         outs = [(dt.transfer(char, C, "pose"), F) for C in deformed]
+        seconds = (time.perf_counter() - t0) / len(deformed)
+        height = float(np.ptp(V[:, 1]))
         out[name] = {"valid": True, "seconds": char.fit.seconds, "vertices": len(V),
-                     "repairs": char.fit.repairs, "credit": model.credit,
+                     "rounds": char.fit.rounds, "credit": model.credit,
+                     "torn_permille_unrefined": [1e3 * torn_share(V, F, X) for X, _ in raw],
+                     "torn_permille": [1e3 * torn_share(V, F, X) for X, _ in outs],
+                     "seconds_per_pose_unrefined": raw_seconds,
+                     "seconds_per_pose": seconds,
+                     "coupled": char.fit.checks["coupled"],
+                     "mended": char.fit.checks["mended"],
                      "max_landmark_error_pct": float(char.fit.landmark_errors.max()
-                                                     / np.ptp(V[:, 1]) * 100)}
+                                                     / height * 100),
+                     "median_landmark_error_pct": float(np.median(char.fit.landmark_errors)
+                                                        / height * 100)}
         print(f"  {name}: {len(V)} vertices, valid cage in {char.fit.seconds:.1f} s "
-              f"({char.fit.repairs} repairs)")
+              f"({char.fit.rounds} enclosure rounds; landmark error median "
+              f"{out[name]['median_landmark_error_pct']:.2f}% / max "
+              f"{out[name]['max_landmark_error_pct']:.2f}% of the height); bound through "
+              f"the cage's folds {100 * char.fit.checks['coupled']:.2f}% of the vertices, "
+              f"mended {100 * char.fit.checks['mended']:.2f}%")
+        print(f"    torn edges per mille, unrefined {_listed(out[name]['torn_permille_unrefined'])}"
+              f" ({raw_seconds:.2f} s a pose), as rigid as possible "
+              f"{_listed(out[name]['torn_permille'])} ({seconds:.2f} s a pose)")
         if folder:
             path = folder / f"transfer_{name}.png"
-            dt.render_grid(path, [[(V, F)] + list(examples), [(V, F)] + outs],
-                           labels=["template examples", f"{name}: pose-aware transfer"])
+            dt.render_grid(path, [[template] + list(examples), [(V, F)] + raw,
+                                  [(V, F)] + outs],
+                           labels=["template: rest and examples",
+                                   f"{name}: rest and the cage's result (unrefined)",
+                                   "made as rigid as possible where it tears (the default)"],
+                           panel=(260, 330))
             print(f"  wrote {path}")
     return out
+
+
+def _listed(values) -> str:
+    return " ".join(f"{v:.1f}" for v in values)
 
 
 def draw(folder, pictures, titles) -> None:
