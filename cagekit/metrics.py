@@ -1,4 +1,5 @@
-"""Evaluation metrics of a deformation: Chamfer distance and cotangent-Laplacian distortion.
+"""Evaluation metrics of a deformation: Chamfer distance, cotangent-Laplacian distortion and
+the structure of man-made shapes (parts kept affine, planes kept planar, symmetry kept).
 
 The definitions are those of docs/architecture.md ("Metrics", as the paper's evaluation
 code computes them): ``CD = mean_a min_b |a - b|^2 + mean_b min_a |a - b|^2`` on 5000
@@ -14,6 +15,13 @@ point cloud is not resampled (a seeded subset when it has more than ``n`` points
 is invariant to translating ``V_out``, not to rotating or scaling it. Duplicate and
 zero-area faces are removed before ``L`` is built (a vertex only on such faces gets an empty
 row, still counted in ``n``); a source without faces of positive area raises ``InputError``.
+
+The structure figures (DESIGN.md, "Metrics") see what CD and dCotLap do not: a chair leg
+bent, a seat warped, a symmetric chair made lopsided. :func:`part_nonaffinity` fits an
+affine map to each connected component of the source, :func:`planarity` measures how far
+adjacent faces of its planar regions turn against each other and :func:`symmetry_error`
+how far the result is from the source's mirror symmetry. Any affine map of the shape
+scores 0 on the first two; the figures are invariant to similarities of the result.
 """
 
 from __future__ import annotations
@@ -34,7 +42,17 @@ from cagekit.geometry import (
 )
 from cagekit.sampling import surface_samples
 
-__all__ = ["chamfer", "chamfer_distance", "dcotlap", "evaluate"]
+__all__ = ["chamfer", "chamfer_distance", "dcotlap", "evaluate", "part_nonaffinity",
+           "planarity", "symmetry_error", "MIN_PART_VERTICES", "PLANAR_DEGREES",
+           "SYMMETRY_TOLERANCE"]
+
+#: a source component with fewer vertices is too small to be a part (a screw, a label)
+MIN_PART_VERTICES = 30
+#: adjacent source faces whose normals differ by at most this are one planar region
+PLANAR_DEGREES = 1.0
+#: a source is mirror-symmetric when every mirrored vertex is this close to a vertex
+#: (share of its bounding-box diagonal)
+SYMMETRY_TOLERANCE = 1e-3
 
 
 def _nearest_sq(P: np.ndarray, Q: np.ndarray) -> np.ndarray:
@@ -178,7 +196,7 @@ def dcotlap(V_src: ArrayLike, F_src: ArrayLike, V_out: ArrayLike) -> float:
 
 def evaluate(source, target, deformed, n_samples: int = 5000, seed: int = 0,
              frames=None) -> dict:
-    """CD and dCotLap of a deformed source against a target, in the paper's frames.
+    """CD, dCotLap and the structure figures of a deformed source against a target.
 
     The target is normalised on its own; the deformed source is mapped by the target's
     ``(center, scale)``; the source normalised on its own is the distortion reference.
@@ -208,7 +226,12 @@ def evaluate(source, target, deformed, n_samples: int = 5000, seed: int = 0,
     -------
     dict
         ``{"cd": float, "dcotlap": float, "cd_x1e2": float, "dcotlap_x1e3": float,
-        "n_samples": int, "seed": int}``.
+        "part_nonaffinity_median": float, "part_nonaffinity_worst": float, "parts": int,
+        "planarity_mean_deg": float, "planarity_p95_deg": float, "symmetry_axis": str or
+        None, "symmetry_error": float or None, "n_samples": int, "seed": int}``: the
+        structure figures are those of :func:`part_nonaffinity`, :func:`planarity` and
+        :func:`symmetry_error` on the source and the deformed source (invariant to the
+        frames).
 
     Raises
     ------
@@ -240,11 +263,209 @@ def evaluate(source, target, deformed, n_samples: int = 5000, seed: int = 0,
     Vs_n, Vt_n, Vd_t = fs.to_unit(Vs), ft.to_unit(Vt), ft.to_unit(Vd)
     cd = chamfer(Vd_t, Fd, Vt_n, Ft, n_samples=n_samples, seed=seed)
     dist = dcotlap(Vs_n, Fs, Vd_t)
+    parts = part_nonaffinity(Vs, Fs, Vd)
+    flat = planarity(Vs, Fs, Vd)
+    mirror = symmetry_error(Vs, Vd)
     return {
         "cd": cd,
         "dcotlap": dist,
         "cd_x1e2": cd * 1e2,
         "dcotlap_x1e3": dist * 1e3,
+        "part_nonaffinity_median": parts["median"],
+        "part_nonaffinity_worst": parts["worst"],
+        "parts": parts["parts"],
+        "planarity_mean_deg": flat["mean_deg"],
+        "planarity_p95_deg": flat["p95_deg"],
+        "symmetry_axis": None if mirror is None else mirror["axis"],
+        "symmetry_error": None if mirror is None else mirror["error"],
         "n_samples": int(n_samples),
         "seed": int(seed),
     }
+
+
+def part_nonaffinity(V_src: ArrayLike, F_src: ArrayLike, V_out: ArrayLike,
+                     min_vertices: int = MIN_PART_VERTICES) -> dict:
+    """How far each part of a deformed shape is from an affine map of itself.
+
+    For each connected component of the source with at least ``min_vertices`` vertices
+    (the whole shape when none has), the RMS residual of the least-squares affine fit
+    ``V_out ~ [V_src 1] A`` over the part's vertices, divided by the deformed part's
+    bounding-box diagonal. Any affine map of the whole shape, or of each part on its own,
+    scores 0; a bend scores about the bend's sag over the part's size.
+
+    Parameters
+    ----------
+    V_src : (n, 3) array_like of float
+        The source's vertices.
+    F_src : (m, 3) array_like of int
+        Its faces (they define the parts).
+    V_out : (n, 3) array_like of float
+        The deformed vertices, in the source's order (any frame: the figure is invariant
+        to similarities of ``V_out``).
+    min_vertices : int, default :data:`MIN_PART_VERTICES`
+
+    Returns
+    -------
+    dict
+        ``{"median": float, "worst": float, "parts": int}``: the vertex-weighted median
+        over parts, the worst part, the number of parts measured.
+
+    Raises
+    ------
+    InputError
+        Shapes that disagree, no faces.
+
+    Examples
+    --------
+    >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]])
+    >>> F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    >>> A = np.array([[2.0, 0.3, 0], [0, 1, 0], [0.5, 0, 0.2]])
+    >>> part_nonaffinity(V, F, V @ A + 1)["worst"] < 1e-12
+    True
+    """
+    from cagekit.cage import face_components
+
+    Vs, Vo, F = _paired(V_src, F_src, V_out)
+    labels = np.full(len(Vs), -1)
+    labels[F.ravel()] = np.repeat(face_components(len(Vs), F), 3)
+    counts = np.bincount(labels[labels >= 0])
+    parts = [np.flatnonzero(labels == c) for c in np.flatnonzero(counts >= min_vertices)]
+    if not parts:
+        parts = [np.flatnonzero(labels >= 0)]
+    values = np.array([_affine_residual(Vs[idx], Vo[idx]) for idx in parts])
+    sizes = np.array([len(idx) for idx in parts], dtype=np.float64)
+    order = np.argsort(values)
+    cumulative = np.cumsum(sizes[order])
+    median = values[order][np.searchsorted(cumulative, 0.5 * cumulative[-1])]
+    return {"median": float(median), "worst": float(values.max()), "parts": len(parts)}
+
+
+def planarity(V_src: ArrayLike, F_src: ArrayLike, V_out: ArrayLike,
+              tolerance_degrees: float = PLANAR_DEGREES) -> dict:
+    """How far faces of the source's planar regions turn against each other.
+
+    Over every pair of faces that share an edge and whose normals in the source differ by
+    at most ``tolerance_degrees``: the change of the angle between their normals, in
+    degrees. An affine map keeps exactly coplanar faces coplanar (0); a pair within the
+    tolerance but not coplanar may change by a fraction of it under a stretch.
+
+    Parameters
+    ----------
+    V_src : (n, 3) array_like of float
+    F_src : (m, 3) array_like of int
+    V_out : (n, 3) array_like of float
+        The deformed vertices, in the source's order.
+    tolerance_degrees : float, default :data:`PLANAR_DEGREES`
+
+    Returns
+    -------
+    dict
+        ``{"mean_deg": float, "p95_deg": float, "pairs": int}`` (zeros and 0 pairs when
+        the source has no planar region).
+
+    Examples
+    --------
+    >>> V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.0]])
+    >>> F = np.array([[0, 1, 2], [0, 2, 3]])
+    >>> bent = V.copy(); bent[3, 2] = 1.0     # one triangle folded about the diagonal
+    >>> round(planarity(V, F, bent)["mean_deg"], 3)   # arccos(1 / sqrt(3))
+    54.736
+    """
+    Vs, Vo, F = _paired(V_src, F_src, V_out)
+    F = remove_duplicate_faces(F)
+    F = F[face_areas(Vs, F) > 0]
+    a, b = _adjacent_faces(F)
+    before = _normal_angles(Vs, F, a, b)
+    planar = before <= tolerance_degrees
+    if not planar.any():
+        return {"mean_deg": 0.0, "p95_deg": 0.0, "pairs": 0}
+    turn = np.abs(_normal_angles(Vo, F, a[planar], b[planar]) - before[planar])
+    return {"mean_deg": float(turn.mean()), "p95_deg": float(np.quantile(turn, 0.95)),
+            "pairs": int(planar.sum())}
+
+
+def symmetry_error(V_src: ArrayLike, V_out: ArrayLike,
+                   tolerance: float = SYMMETRY_TOLERANCE) -> dict | None:
+    """The mirror symmetry the source has, and how much of it the deformed shape keeps.
+
+    The source is symmetric about a plane normal to axis ``x``, ``y`` or ``z`` through
+    its bounding-box centre when every vertex's mirror image lies within ``tolerance`` of
+    the bounding-box diagonal of a vertex (the first such axis is used). The deformed
+    shape is scored with the same vertex pairs: the RMS distance between each vertex's
+    mirror image, about the best plane normal to that axis, and its partner, over the
+    deformed bounding-box diagonal. A scaling along the axes keeps it 0.
+
+    Parameters
+    ----------
+    V_src, V_out : (n, 3) array_like of float
+        The source and the deformed vertices, in the same order.
+    tolerance : float, default :data:`SYMMETRY_TOLERANCE`
+
+    Returns
+    -------
+    dict or None
+        ``{"axis": "x" | "y" | "z", "error": float}``, or None when the source has no
+        such symmetry.
+
+    Examples
+    --------
+    >>> V = np.array([[-1, 0, 0], [1, 0, 0], [-1, 1, 0], [1, 1, 0.0]])
+    >>> symmetry_error(V, V * [3, 1, 1])
+    {'axis': 'x', 'error': 0.0}
+    """
+    Vs, Vo, _ = _paired(V_src, np.zeros((0, 3), int), V_out)
+    centre = 0.5 * (Vs.min(axis=0) + Vs.max(axis=0))
+    diagonal = float(np.linalg.norm(np.ptp(Vs, axis=0)))
+    tree = cKDTree(Vs)
+    for axis, name in enumerate("xyz"):
+        mirrored = Vs.copy()
+        mirrored[:, axis] = 2 * centre[axis] - mirrored[:, axis]
+        distance, partner = tree.query(mirrored)
+        if distance.max() > tolerance * diagonal:
+            continue
+        plane = 0.5 * (Vo[:, axis] + Vo[partner, axis]).mean()
+        image = Vo.copy()
+        image[:, axis] = 2 * plane - image[:, axis]
+        residual = np.sqrt(np.mean(np.sum((image - Vo[partner]) ** 2, axis=1)))
+        return {"axis": name,
+                "error": float(residual / np.linalg.norm(np.ptp(Vo, axis=0)))}
+    return None
+
+
+def _paired(V_src, F_src, V_out):
+    Vs = as_vertices(V_src, "V_src")
+    Vo = as_vertices(V_out, "V_out")
+    if Vo.shape != Vs.shape:
+        raise InputError(f"V_out has shape {Vo.shape} but V_src {Vs.shape}")
+    return Vs, Vo, as_faces(F_src, len(Vs), "F_src")
+
+
+def _affine_residual(P, Q) -> float:
+    """RMS residual of the least-squares affine map P -> Q over Q's bounding-box diagonal."""
+    X = np.column_stack([P, np.ones(len(P))])
+    A = np.linalg.lstsq(X, Q, rcond=None)[0]
+    size = float(np.linalg.norm(np.ptp(Q, axis=0)))
+    rms = float(np.sqrt(np.mean(np.sum((X @ A - Q) ** 2, axis=1))))
+    return rms / size if size > 0 else 0.0
+
+
+def _adjacent_faces(F) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs of faces sharing an edge (each pair once; an edge with k faces gives the
+    pairs of consecutive ones)."""
+    m = len(F)
+    E = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
+    owner = np.tile(np.arange(m), 3)
+    order = np.lexsort((E[:, 1], E[:, 0]))
+    E, owner = E[order], owner[order]
+    same = np.all(E[1:] == E[:-1], axis=1)
+    return owner[:-1][same], owner[1:][same]
+
+
+def _normal_angles(V, F, a, b) -> np.ndarray:
+    """Angles in degrees between the normals of faces ``a`` and ``b`` (0 for a face with
+    no area)."""
+    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    n = np.divide(n, length, out=np.zeros_like(n), where=length > 0)
+    sin = np.linalg.norm(np.cross(n[a], n[b]), axis=1)  # atan2: exact near 0 and 180
+    return np.degrees(np.arctan2(sin, np.einsum("ij,ij->i", n[a], n[b])))

@@ -3,13 +3,22 @@
 import numpy as np
 import pytest
 import trimesh
-from builders import icosphere
+from builders import SEEDS, grid, icosphere
+from hypothesis import given, settings
 from scipy.spatial.transform import Rotation
 
 from cagekit.errors import InputError
 from cagekit.frame import normalize
 from cagekit.geometry import cotangent_laplacian
-from cagekit.metrics import chamfer, chamfer_distance, dcotlap, evaluate
+from cagekit.metrics import (
+    chamfer,
+    chamfer_distance,
+    dcotlap,
+    evaluate,
+    part_nonaffinity,
+    planarity,
+    symmetry_error,
+)
 from cagekit.sampling import surface_samples
 
 
@@ -230,7 +239,14 @@ def test_evaluate_keys_and_scaled_values():
     src = ellipsoid()
     tgt = ellipsoid(axes=(1.2, 1.8, 0.7), offset=(4.0, 0.0, 1.0))
     m = evaluate(src, tgt, (bend(src[0], 0.2), src[1]), n_samples=1000, seed=2)
-    assert set(m) == {"cd", "dcotlap", "cd_x1e2", "dcotlap_x1e3", "n_samples", "seed"}
+    assert set(m) == {"cd", "dcotlap", "cd_x1e2", "dcotlap_x1e3", "n_samples", "seed",
+                      "part_nonaffinity_median", "part_nonaffinity_worst", "parts",
+                      "planarity_mean_deg", "planarity_p95_deg", "symmetry_axis",
+                      "symmetry_error"}
+    # the bent ellipsoid: one part, not affine; symmetric about x, and the bend (even in
+    # x) keeps that symmetry
+    assert m["parts"] == 1 and m["part_nonaffinity_worst"] > 1e-3
+    assert m["symmetry_axis"] == "x" and m["symmetry_error"] < 1e-12
     assert isinstance(m["cd"], float) and isinstance(m["dcotlap"], float)
     assert m["cd_x1e2"] == pytest.approx(m["cd"] * 100)
     assert m["dcotlap_x1e3"] == pytest.approx(m["dcotlap"] * 1000)
@@ -326,3 +342,117 @@ def test_evaluate_rejects_bad_input():
         evaluate(src, (np.ones((4, 3)), None), src)
     with pytest.raises(InputError, match="NaN"):
         evaluate(src, tgt, (np.full_like(src[0], np.nan), src[1]))
+
+
+# -------------------------------------------------------------------- structure
+
+
+def bar(n=41, length=4.0, width=0.2):
+    """A closed box bar along x, ``n`` stations of 4 vertices each (ends capped)."""
+    x = np.linspace(0.0, length, n)
+    corners = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * width / 2
+    V = np.array([[xi, y, z] for xi in x for y, z in corners])
+    F = []
+    for i in range(n - 1):
+        for k in range(4):
+            a, b = 4 * i + k, 4 * i + (k + 1) % 4
+            F += [[a, b, b + 4], [a, b + 4, a + 4]]
+    last = 4 * (n - 1)
+    F += [[0, 2, 1], [0, 3, 2], [last, last + 1, last + 2], [last, last + 2, last + 3]]
+    return V, np.array(F)
+
+
+def two_parts():
+    """A bar (164 vertices) and an icosahedral ball beside it (42): two components."""
+    Vb, Fb = bar()
+    Vi, Fi = icosphere(1)
+    return np.vstack([Vb, Vi * 0.3 + [2.0, 2.0, 0.0]]), np.vstack([Fb, Fi + len(Vb)])
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=SEEDS)
+def test_an_affine_map_keeps_every_part_affine_and_every_plane_planar(seed):
+    V, F = two_parts()
+    rng = np.random.default_rng(seed)
+    A = rng.normal(size=(3, 3))
+    A += np.eye(3) * (abs(np.linalg.det(A)) ** (1 / 3) + 1.0)  # well conditioned
+    out = V @ A.T + rng.normal(size=3)
+    parts = part_nonaffinity(V, F, out)
+    assert parts["parts"] == 2 and parts["worst"] < 1e-10
+    flat = planarity(V, F, out)
+    assert flat["pairs"] > 0 and flat["p95_deg"] < 1e-6
+
+
+def test_each_part_moved_by_its_own_affine_map_scores_zero():
+    V, F = two_parts()
+    out = V.copy()
+    ball = np.arange(len(V)) >= 164
+    out[ball] = V[ball] @ np.diag([2.0, 0.5, 1.0]) + 3.0
+    out[~ball] = V[~ball] @ Rotation.from_euler("z", 40, degrees=True).as_matrix().T
+    assert part_nonaffinity(V, F, out)["worst"] < 1e-12
+
+
+def test_a_bent_bar_scores_the_residual_of_its_parabola():
+    # z += k x^2 on x in [0, 4]: the best affine fit leaves k (x^2 - linear fit), whose
+    # RMS over the stations is computed directly here; over the bent bar's diagonal
+    V, F = bar(n=401)
+    k = 0.05
+    out = V.copy()
+    out[:, 2] += k * V[:, 0] ** 2
+    x = V[:, 0]
+    coeffs = np.polyfit(x, k * x ** 2, 1)
+    rms = np.sqrt(np.mean((k * x ** 2 - np.polyval(coeffs, x)) ** 2))
+    expected = rms / np.linalg.norm(np.ptp(out, axis=0))
+    assert part_nonaffinity(V, F, out)["worst"] == pytest.approx(expected, rel=1e-9)
+    # the continuous answer: k L^2 / (6 sqrt 5) for L = 4
+    assert rms == pytest.approx(k * 16 / (6 * np.sqrt(5)), rel=0.01)
+
+
+def test_the_median_is_weighted_by_part_size_and_small_parts_are_skipped():
+    V, F = two_parts()
+    out = V.copy()
+    out[:164, 2] += 0.05 * V[:164, 0] ** 2           # the bar (164 vertices) bent
+    bent = part_nonaffinity(V, F, out)
+    assert bent["median"] == bent["worst"] > 1e-3    # the bar outweighs the ball (42)
+    out2 = V.copy()
+    out2[164:] += 0.05 * np.random.default_rng(0).normal(size=(42, 3))  # ball jittered
+    jittered = part_nonaffinity(V, F, out2)
+    assert jittered["median"] < 1e-12 < jittered["worst"]
+    # with parts of 50 vertices or more only the bar counts
+    only_bar = part_nonaffinity(V, F, out2, min_vertices=50)
+    assert only_bar["parts"] == 1 and only_bar["worst"] < 1e-12
+
+
+def test_a_folded_plate_turns_by_the_fold_angle_along_the_crease():
+    # a flat 9 x 6 grid folded 30 degrees about the line x = 4: the face pairs across the
+    # crease turn by 30, every other pair by 0
+    V, F, _ = grid(9, 6)
+    out = V.copy()
+    right = V[:, 0] > 4
+    a = np.radians(30)
+    out[right, 0] = 4 + (V[right, 0] - 4) * np.cos(a)
+    out[right, 2] = (V[right, 0] - 4) * np.sin(a)
+    flat = planarity(V, F, out)
+    crease = 5                                       # the grid's cells along x = 4
+    assert flat["mean_deg"] * flat["pairs"] == pytest.approx(30 * crease, rel=1e-9)
+    assert flat["p95_deg"] < 1e-9                    # 5 of 123 pairs turned
+
+
+def test_planarity_ignores_regions_that_were_curved():
+    V, F = icosphere(2)                               # no two faces coplanar
+    assert planarity(V, F, bend(V))["pairs"] == 0
+
+
+def test_symmetry_is_found_kept_by_axis_scaling_and_lost_by_a_bend():
+    V, F = bar()
+    V = V - [2.0, 0.0, 0.0]                           # symmetric about x = 0
+    kept = symmetry_error(V, V * [2.0, 1.0, 3.0])
+    assert kept["axis"] == "x" and kept["error"] < 1e-12
+    lopsided = V.copy()
+    lopsided[:, 2] += 0.1 * np.maximum(V[:, 0], 0) ** 2
+    assert symmetry_error(V, lopsided)["error"] > 1e-2
+    skew = V.copy()
+    skew[V[:, 0] > 1.5, 1] += 0.3                     # one end offset along y: the x and
+    assert symmetry_error(skew, skew)["axis"] == "z"  # y symmetries are gone, z's is not
+    cloud = np.random.default_rng(1).normal(size=(50, 3))
+    assert symmetry_error(cloud, cloud) is None

@@ -1,4 +1,4 @@
-"""``cagekit eval``: CD and dCotLap of a deformed shape (docs/architecture.md, section 4)."""
+"""``cagekit eval``: CD, dCotLap and structure of a deformed shape (docs/architecture.md)."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from cagekit.errors import InputError
 _EVAL_ROLES = ("source", "target", "deformed")
 
 
-@click.command(name="eval", short_help="Chamfer distance and dCotLap of a deformed shape.")
+@click.command(name="eval", short_help="CD, dCotLap and structure of a deformed shape.")
 @click.argument("source", type=click.Path(dir_okay=False))
 @click.argument("target", type=click.Path(dir_okay=False))
 @click.argument("deformed", type=click.Path(dir_okay=False))
@@ -28,12 +28,15 @@ _EVAL_ROLES = ("source", "target", "deformed")
 @debug_option
 @click.pass_context
 def eval_(ctx, source, target, deformed, samples, seed, as_json):
-    """Chamfer distance and dCotLap distortion of DEFORMED (a deformed SOURCE) vs TARGET.
+    """Chamfer distance, dCotLap and structure of DEFORMED (a deformed SOURCE) vs TARGET.
 
     As the paper's evaluation: TARGET is normalised on its own and DEFORMED mapped by the
     same transform; the normalised SOURCE is the reference for distortion. SOURCE and
     DEFORMED must have the same vertices (count and order); TARGET may be a point cloud.
-    Lower is better for both figures.
+    Structure (SOURCE against DEFORMED): part non-affinity (each connected part of 30
+    vertices or more against its best affine map, over its size), planarity (how far
+    adjacent faces of planar regions turn, degrees), and the mirror symmetry kept when
+    SOURCE has one. Lower is better for every figure.
     """
     import numpy as np
 
@@ -69,3 +72,13 @@ def eval_(ctx, source, target, deformed, samples, seed, as_json):
     click.echo(f"{'metric':<9}{'value':<14}as in the paper's tables")
     click.echo(f"{'CD':<9}{result['cd']:<14.6g}{result['cd_x1e2']:.4f} (x 1e2)")
     click.echo(f"{'dCotLap':<9}{result['dcotlap']:<14.6g}{result['dcotlap_x1e3']:.4f} (x 1e3)")
+    click.echo(f"part non-affinity: median {100 * result['part_nonaffinity_median']:.3f}%, "
+               f"worst {100 * result['part_nonaffinity_worst']:.3f}% over "
+               f"{result['parts']} part(s)")
+    click.echo(f"planarity: mean {result['planarity_mean_deg']:.3f} deg, 95th percentile "
+               f"{result['planarity_p95_deg']:.3f} deg")
+    if result["symmetry_axis"] is None:
+        click.echo("symmetry: the source has no mirror symmetry about x, y or z")
+    else:
+        click.echo(f"symmetry about {result['symmetry_axis']}: error "
+                   f"{100 * result['symmetry_error']:.3f}% of the size")
