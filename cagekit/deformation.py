@@ -6,7 +6,10 @@ point is ``W @ C``, and each term's gradient is the exact ``W.T @ dE/dX``
 (:mod:`cagekit.losses`). The energy is an alignment term (Chamfer, or landmarks, which
 replace it by default), the shape terms ``L_p2f`` and ``L_normal`` (0.1 each, the paper's
 ``alpha_shape``), an optional symmetry term and the change of the cage's cotangent
-Laplacian (0.3, or 1 with ``reference="source"``; ours: the paper gives no weight). The
+Laplacian (0.3, or 1 with ``reference="source"``; ours: the paper gives no weight), and on
+a source of two or more parts (connected components) a part-affinity term (300, ours): each
+part's distance from an affine map of itself, so that legs stay straight and seats flat
+while the parts move, stretch and shear to the target. The
 source's bounding box is first mapped onto the target's; nlopt's L-BFGS then minimises the
 full energy with its analytic gradient (not an alternating linearised scheme: the PCA-normal
 terms are not quadratic in the cage), 60 evaluations by default, restarted once from the
@@ -47,6 +50,10 @@ __all__ = ["CageEnergy", "CageProblem", "CageSolution", "DeformResult", "DEFAULT
            "METHODS", "deform", "solve"]
 
 METHODS = ("cage", "scale", "nricp")
+#: weight of the part-affinity term (:func:`cagekit.losses.part_affinity_loss`) on sources
+#: of two or more parts (connected components of 30 vertices or more); chosen on real
+#: furniture pairs (docs/benchmarks.md, "Per-pair deformation")
+PARTS_WEIGHT = 300.0
 REFERENCES = ("source", "aligned")
 DEFAULT_WEIGHTS = {
     "chamfer": 1.0,
@@ -55,6 +62,7 @@ DEFAULT_WEIGHTS = {
     "normal": losses.ALPHA_SHAPE,
     "symmetry": 1.0,
     "cage": 0.3,
+    "parts": PARTS_WEIGHT,
 }
 #: the cage weight's default with ``reference="source"``
 SOURCE_REFERENCE_CAGE_WEIGHT = 1.0
@@ -149,10 +157,13 @@ class CageEnergy:
         Term weights; a zero weight skips the term.
     symmetry : {"x", "y", "z"} or None
     W_landmarks, landmarks : (l, k) and (l, 3) float64, optional
+    parts_matrix : (k, k) float64, optional
+        The part-affinity term as a quadratic form of the cage
+        (:func:`cagekit.losses.part_affinity_matrix`).
     """
 
     def __init__(self, W_samples, target, W_shape, shape_ref, cage_f, cage_ref, weights,
-                 symmetry=None, W_landmarks=None, landmarks=None):
+                 symmetry=None, W_landmarks=None, landmarks=None, parts_matrix=None):
         self.W_samples, self.target = W_samples, target
         self.tree = cKDTree(target) if target is not None else None
         self.W_shape, self.shape_ref = W_shape, shape_ref
@@ -163,6 +174,7 @@ class CageEnergy:
         if symmetry is not None:
             self.partners = losses.mirror_partners(cage_ref, symmetry)
         self.W_landmarks, self.landmarks = W_landmarks, landmarks
+        self.parts_matrix = parts_matrix
 
     def evaluate(self, C):
         """Weighted energy, its gradient (k, 3) and each active term's unweighted value."""
@@ -196,6 +208,9 @@ class CageEnergy:
             add("symmetry", v_shape + v_cage, self.W_samples.T @ g_shape + g_cage)
         if w["cage"]:
             add("cage", *losses.laplacian_loss(C, self.L, self.cage_ref))
+        if w["parts"] and self.parts_matrix is not None:
+            QC = self.parts_matrix @ C
+            add("parts", float(np.einsum("ij,ij->", C, QC)), 2.0 * QC)
         return energy, grad, values
 
     def __call__(self, C):
@@ -277,6 +292,22 @@ def _shape_rows(Vs_n, Fs, shape_points, rng):
     return used, own, inverse[len(rows):].reshape(index.shape), mask
 
 
+def _part_term(Vs_n, Fs, W_vertices):
+    """The part-affinity quadratic form of the source's parts (face components of at least
+    ``MIN_PART_VERTICES`` vertices), or None when it has fewer than two."""
+    from cagekit.cage import face_components
+    from cagekit.metrics import MIN_PART_VERTICES
+
+    if not len(Fs):
+        return None
+    labels = np.full(len(Vs_n), -1)
+    labels[Fs.ravel()] = np.repeat(face_components(len(Vs_n), Fs), 3)
+    parts = losses.part_bases(Vs_n, labels, MIN_PART_VERTICES)
+    if len(parts.bases) < 2:
+        return None
+    return losses.part_affinity_matrix(W_vertices, parts)
+
+
 def _samples_of(role, V, F, n, seed):
     """``surface_samples``, its errors naming the role (the command line blames the file)."""
     try:
@@ -348,8 +379,10 @@ class CageProblem:
         box_cage = binding.cage_v * box_scale(Vs_n, Vt_n)
         reference_cage = box_cage if reference == "aligned" else binding.cage_v
         shape_ref = losses.shape_reference(W_shape @ reference_cage, own, index, mask)
+        parts_matrix = _part_term(Vs_n, Fs, W[:n]) if weights["parts"] else None
         energy = CageEnergy(W_samples, T, W_shape, shape_ref, binding.cage_f,
-                            reference_cage, weights, symmetry, W_landmarks, tgt_lm)
+                            reference_cage, weights, symmetry, W_landmarks, tgt_lm,
+                            parts_matrix)
         return cls(W[:n], binding.cage_v, binding.cage_f, box_cage, energy, weights)
 
 
@@ -414,11 +447,16 @@ def _nricp(Vs_box, Fs, Vt_n, Ft):
     if not len(Fs):
         raise InputError("method nricp needs a source mesh with faces, got a point cloud")
     source = trimesh.Trimesh(Vs_box, Fs, process=False, validate=False)
-    if len(Ft):
-        target = trimesh.Trimesh(Vt_n, Ft, process=False, validate=False)
-        return np.asarray(nricp_amberg(source, target), dtype=np.float64)
-    return np.asarray(nricp_amberg(source, Vt_n, use_faces=False, use_vertex_normals=False),
-                      dtype=np.float64)
+    try:
+        if len(Ft):
+            target = trimesh.Trimesh(Vt_n, Ft, process=False, validate=False)
+            return np.asarray(nricp_amberg(source, target), dtype=np.float64)
+        return np.asarray(nricp_amberg(source, Vt_n, use_faces=False,
+                                       use_vertex_normals=False), dtype=np.float64)
+    except RuntimeError as exc:  # scipy's solver: vertices on no face, or disconnected
+        raise InputError(f"trimesh's nricp_amberg cannot solve this pair ({exc}); vertices "
+                         "on no face or parts it cannot anchor make its system singular"
+                         ) from None
 
 
 def deform(source, target, cage=None, *, method: str = "cage", symmetry: str | None = None,

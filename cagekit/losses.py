@@ -4,8 +4,10 @@ Every function takes point positions (usually the deformed points ``X = W @ C``,
 the cage ``C``) and returns ``(value, gradient)`` with respect to the positions it was
 given, so the chain rule through the binding is one product, ``dE/dC = W.T @ dE/dX``; all
 arrays are float64. The terms: Chamfer and landmark alignment, point-set and cage symmetry,
-point-to-plane and PCA-normal change (:func:`shape_losses`, one eigen-decomposition), the
-cage's Laplacian change and ``L_MVC`` (negative weights); each function states its formula.
+point-to-plane and PCA-normal change (:func:`shape_losses`, one eigen-decomposition), each
+part's distance from an affine map of itself (:func:`part_affinity_loss`, ours: the
+structure of man-made shapes), the cage's Laplacian change and ``L_MVC`` (negative
+weights); each function states its formula.
 Chamfer follows docs/architecture.md ("Metrics"): squared distances, both directions summed,
 not halved; its gradient is that of the current nearest neighbours (it is piecewise
 quadratic). The PCA normal's derivative is the first-order eigenvector perturbation, and
@@ -37,6 +39,10 @@ __all__ = [
     "mvc_loss",
     "normal_loss",
     "p2f_loss",
+    "PartBases",
+    "part_affinity_loss",
+    "part_affinity_matrix",
+    "part_bases",
     "shape_losses",
     "shape_reference",
     "symmetry_loss",
@@ -530,3 +536,129 @@ def p2f_loss(X, ref: ShapeReference) -> tuple[float, np.ndarray]:
     """
     values, grad = shape_losses(X, ref, normal_weight=0.0)
     return values["p2f"], grad
+
+
+class PartBases(NamedTuple):
+    """Per part of a shape, an orthonormal basis of the affine functions of its rest points
+    (:func:`part_bases`)."""
+
+    index: np.ndarray  # (p,) int64: the rows of the points of every part, part after part
+    starts: np.ndarray  # (parts + 1,) int64: part i is index[starts[i]:starts[i + 1]]
+    bases: tuple  # per part, (n_i, r_i) float64 with orthonormal columns, r_i <= 4
+
+
+def part_bases(X_rest, labels, min_points: int = 30) -> PartBases:
+    """The affine span of each part's rest points, for :func:`part_affinity_loss`.
+
+    Parameters
+    ----------
+    X_rest : (n, 3) float64
+        The points at rest.
+    labels : (n,) int
+        A part label per point; negative labels and parts of fewer than ``min_points``
+        points are left out.
+    min_points : int
+
+    Returns
+    -------
+    PartBases
+        For each part, the left singular vectors of ``[X_rest 1]`` over its points whose
+        singular values exceed ``1e-9`` times the largest (a flat part spans 3 columns).
+
+    Examples
+    --------
+    >>> X = np.random.default_rng(0).normal(size=(40, 3))
+    >>> b = part_bases(X, np.zeros(40, int))
+    >>> b.bases[0].shape
+    (40, 4)
+    """
+    X_rest = np.asarray(X_rest, dtype=np.float64)
+    labels = np.asarray(labels)
+    index, starts, bases = [], [0], []
+    for label in np.unique(labels[labels >= 0]):
+        rows = np.flatnonzero(labels == label)
+        if len(rows) < min_points:
+            continue
+        U, sigma, _ = np.linalg.svd(np.column_stack([X_rest[rows], np.ones(len(rows))]),
+                                    full_matrices=False)
+        bases.append(U[:, sigma > 1e-9 * sigma[0]])
+        index.append(rows)
+        starts.append(starts[-1] + len(rows))
+    index = np.concatenate(index) if index else np.zeros(0, np.int64)
+    return PartBases(index.astype(np.int64), np.array(starts, np.int64), tuple(bases))
+
+
+def part_affinity_loss(X, parts: PartBases) -> tuple[float, np.ndarray]:
+    """How far each part is from an affine map of its rest points, with ``dL/dX``.
+
+    Parameters
+    ----------
+    X : (n, 3) float64
+        The points (all of them; ``parts.index`` picks each part's).
+    parts : PartBases
+
+    Returns
+    -------
+    value : float
+        ``sum over parts of |X_p - B_p B_p^T X_p|^2``, over the number of part points:
+        the mean squared residual of each part's least-squares affine fit (``B_p`` the
+        part's basis). 0 for any affine map of each part.
+    grad : (n, 3) float64
+        ``2 (X_p - B_p B_p^T X_p) / count`` on the part points, 0 elsewhere.
+
+    Examples
+    --------
+    >>> X = np.random.default_rng(0).normal(size=(40, 3))
+    >>> b = part_bases(X, np.zeros(40, int))
+    >>> value, _ = part_affinity_loss(X @ np.diag([2.0, 1.0, 0.5]) + 3.0, b)
+    >>> value < 1e-20
+    True
+    """
+    X = np.asarray(X, dtype=np.float64)
+    grad = np.zeros_like(X)
+    count = len(parts.index)
+    if not count:
+        return 0.0, grad
+    value = 0.0
+    for i, B in enumerate(parts.bases):
+        rows = parts.index[parts.starts[i]:parts.starts[i + 1]]
+        Xp = X[rows]
+        r = Xp - B @ (B.T @ Xp)
+        value += float(np.einsum("ij,ij->", r, r))
+        grad[rows] = 2.0 * r / count
+    return _finite(value / count, "part affinity loss"), grad
+
+
+def part_affinity_matrix(W, parts: PartBases) -> np.ndarray:
+    """:func:`part_affinity_loss` of points ``W @ C`` as a quadratic form of ``C``.
+
+    Parameters
+    ----------
+    W : (n, k) float64
+        Coordinates of the points (``parts.index`` indexes its rows).
+    parts : PartBases
+
+    Returns
+    -------
+    (k, k) float64
+        ``Q`` with ``part_affinity_loss(W @ C, parts)[0] == sum(C * (Q @ C))``; the
+        gradient with respect to ``C`` is ``2 Q C``. Building it costs one pass over
+        ``W``; each evaluation then costs ``k^2``, not ``n k``.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> X, W, C = rng.normal(size=(40, 3)), rng.random((40, 5)), rng.normal(size=(5, 3))
+    >>> parts = part_bases(X, np.zeros(40, int))
+    >>> Q = part_affinity_matrix(W, parts)
+    >>> bool(np.isclose(np.sum(C * (Q @ C)), part_affinity_loss(W @ C, parts)[0]))
+    True
+    """
+    W = np.asarray(W, dtype=np.float64)
+    Q = np.zeros((W.shape[1], W.shape[1]))
+    count = len(parts.index)
+    for i, B in enumerate(parts.bases):
+        Wp = W[parts.index[parts.starts[i]:parts.starts[i + 1]]]
+        R = Wp - B @ (B.T @ Wp)
+        Q += R.T @ R
+    return Q / max(count, 1)

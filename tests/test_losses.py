@@ -24,6 +24,9 @@ from cagekit.losses import (
     mvc_loss,
     normal_loss,
     p2f_loss,
+    part_affinity_loss,
+    part_affinity_matrix,
+    part_bases,
     shape_losses,
     shape_reference,
     symmetry_loss,
@@ -558,3 +561,69 @@ def test_mvc_bad_input_raises():
         mvc_loss(W)
     with pytest.raises(InputError):
         mvc_loss(np.zeros((0, 4)))
+
+
+# ------------------------------------------------------------------- part affinity
+
+
+def _three_parts(seed):
+    """60 points in three labelled parts (one flat), 5 unlabelled."""
+    rng = np.random.default_rng(seed)
+    X = rng.normal(size=(65, 3))
+    X[40:60, 2] = 0.0                                  # a flat part
+    labels = np.repeat([0, 1, 2, -1], [20, 20, 20, 5])
+    return X, labels
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=SEEDS)
+def test_part_affinity_gradient_matches_finite_differences(seed):
+    X, labels = _three_parts(seed)
+    parts = part_bases(X, labels, min_points=10)
+    moved = X + 0.2 * np.random.default_rng(seed + 1).normal(size=X.shape)
+    assert_grad(lambda Y: part_affinity_loss(Y, parts), moved)
+
+
+def test_part_affinity_is_zero_for_a_different_affine_map_per_part():
+    X, labels = _three_parts(0)
+    parts = part_bases(X, labels, min_points=10)
+    assert [b.shape[1] for b in parts.bases] == [4, 4, 3]  # the flat part spans 3
+    Y = X.copy()
+    rng = np.random.default_rng(1)
+    for label in range(3):
+        rows = labels == label
+        Y[rows] = X[rows] @ rng.normal(size=(3, 3)) + rng.normal(size=3)
+    Y[labels < 0] += 5.0                               # unlabelled points are free
+    value, grad = part_affinity_loss(Y, parts)
+    assert value < 1e-20 and np.abs(grad).max() < 1e-10
+
+
+def test_part_affinity_of_a_bend_is_its_mean_squared_residual():
+    # one part, bent by z += x^2: the value is the mean of the squared residuals of the
+    # least-squares affine fit of the bent points (computed here by lstsq)
+    X, _ = _three_parts(2)
+    Y = X.copy()
+    Y[:, 2] += X[:, 0] ** 2
+    parts = part_bases(X, np.zeros(len(X), int))
+    A = np.column_stack([X, np.ones(len(X))])
+    residual = Y - A @ np.linalg.lstsq(A, Y, rcond=None)[0]
+    value, _ = part_affinity_loss(Y, parts)
+    assert value == pytest.approx(np.sum(residual ** 2) / len(X), rel=1e-10)
+
+
+def test_small_parts_are_left_out():
+    X, labels = _three_parts(3)
+    parts = part_bases(X, labels, min_points=30)
+    assert parts.bases == () and part_affinity_loss(X * 2, parts)[0] == 0.0
+
+
+def test_part_affinity_matrix_is_the_loss_as_a_quadratic_form():
+    X, labels = _three_parts(4)
+    parts = part_bases(X, labels, min_points=10)
+    rng = np.random.default_rng(5)
+    W = rng.random((len(X), 7))
+    C = rng.normal(size=(7, 3))
+    value, grad = part_affinity_loss(W @ C, parts)
+    Q = part_affinity_matrix(W, parts)
+    assert np.sum(C * (Q @ C)) == pytest.approx(value, rel=1e-10)
+    np.testing.assert_allclose(2 * Q @ C, W.T @ grad, rtol=1e-9, atol=1e-12)
