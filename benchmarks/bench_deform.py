@@ -9,15 +9,27 @@ prints, per pair and in median, CD x 10^2 and dCotLap x 10^3 (DESIGN.md definiti
   (``cagekit.datasets.synthetic``, seeds below);
 - animals from Debian's ``libcgal-demo`` deformed onto each other (cow, bull,
   triceratops, diplodocus; the bull is mirrored in x to face +x like the others, since
-  none of the methods rotates).
+  none of the methods rotates);
+- real furniture of Debian's ``sweethome3d-furniture`` (the three furniture catalogs),
+  within a kind (:func:`furniture_kind`: chair, armchair, sofa, table, stool or bench),
+  each model onto the next of its kind in catalog order (the first
+  :data:`PAIRS_PER_KIND` of each kind), models of at most :data:`MAX_REAL_VERTICES`
+  vertices (skipped when the package is missing).
 
-``cage-src`` is ``cage`` with ``reference="source"`` (the paper's reference). Then one
+Besides CD and dCotLap, the structure figures of ``cagekit.evaluate`` (DESIGN.md): part
+non-affinity (median over parts and worst part, %) and planarity (95th percentile,
+degrees).
+
+``cage-src`` is ``cage`` with ``reference="source"`` (the paper's reference), ``cage-bend``
+``cage`` without the part-affinity term (``weights={"parts": 0}``: the settings before
+issue 17, parts free to bend). Then one
 timing of ``cage`` on a ~10,000-vertex source (a chair at resolution 1.5) with a 200-face
 cage, with the cage fitted inside the call and with the cage given.
 
 Usage::
 
     python benchmarks/bench_deform.py [--cache DIR] [--picture PNG] [--json FILE]
+        [--furniture-pictures DIR]
 
 ``--cache`` is where ``/usr/share/doc/libcgal-dev/data.tar.gz`` is (or will be)
 unpacked; without the archive the animal pairs are skipped.
@@ -36,6 +48,7 @@ import numpy as np
 
 import cagekit
 from cagekit.datasets import synthetic
+from cagekit.errors import InputError
 from cagekit.io import load_mesh
 
 CGAL_ARCHIVE = "/usr/share/doc/libcgal-dev/data.tar.gz"
@@ -48,7 +61,17 @@ ANIMAL_PAIRS = [
     ("cow", "bull"), ("bull", "cow"), ("cow", "triceratops"), ("triceratops", "cow"),
     ("triceratops", "bull"), ("cow", "diplodocus"), ("triceratops", "diplodocus"),
 ]
-METHODS = ("scale", "nricp", "cage", "cage-src")
+METHODS = ("scale", "nricp", "cage-bend", "cage", "cage-src")
+#: real models with more vertices are left out (nricp_amberg on them takes minutes)
+MAX_REAL_VERTICES = 15_000
+#: pairs of each furniture kind (the first ones in catalog order)
+PAIRS_PER_KIND = 8
+#: name words of each furniture kind, and words that put a name out of every kind
+KIND_WORDS = (("armchair", ("armchair",)), ("sofa", ("sofa", "couch")),
+              ("stool or bench", ("stool", "bench")), ("chair", ("chair",)),
+              ("table", ("table",)))
+NOT_FURNITURE = ("fan", "tennis", "pool", "football", "bedside", "wheel", "workbench",
+                 "abdominal", "bat", "ottoman")
 #: cage-src is method cage with reference="source" (the paper's reference; see
 #: cagekit/deformation.py): same cage fit, every stretch charged
 
@@ -71,6 +94,39 @@ def animal(folder, name):
     return V, F
 
 
+def furniture_kind(name: str) -> str | None:
+    """The kind of a furniture model from its catalog name, or None."""
+    low = name.lower()
+    if any(word in low for word in NOT_FURNITURE):
+        return None
+    return next((kind for kind, words in KIND_WORDS if any(w in low for w in words)), None)
+
+
+def furniture_pairs():
+    """(name, source, target, None) for consecutive models of each kind."""
+    from cagekit.datasets.sweethome3d import FURNITURE_CATALOGS, models
+    from cagekit.errors import InputError
+
+    try:
+        found = models(catalogs=FURNITURE_CATALOGS)
+    except InputError as exc:
+        print(f"sweethome3d-furniture not found ({exc}): real furniture skipped",
+              file=sys.stderr)
+        return []
+    kinds = {}
+    for model in found:
+        kind = furniture_kind(model.name)
+        if kind is not None:
+            kinds.setdefault(kind, []).append(model)
+    out = []
+    for kind, members in kinds.items():
+        meshes = [(m, load_mesh(m.path)) for m in members]
+        meshes = [(m, mesh) for m, mesh in meshes if len(mesh[0]) <= MAX_REAL_VERTICES]
+        for (a, mesh_a), (b, mesh_b) in list(zip(meshes, meshes[1:]))[:PAIRS_PER_KIND]:
+            out.append((f"{kind}: {a.name} -> {b.name}", mesh_a, mesh_b, None))
+    return out
+
+
 def pairs(cache):
     out = []
     for family, a, b in SYNTHETIC_PAIRS:
@@ -79,10 +135,55 @@ def pairs(cache):
     folder = cgal_meshes(cache) if cache else None
     if folder is None:
         print("libcgal-demo meshes not found: animal pairs skipped", file=sys.stderr)
-        return out
-    for a, b in ANIMAL_PAIRS:
-        out.append((f"{a}->{b}", animal(folder, a), animal(folder, b), None))
-    return out
+    else:
+        for a, b in ANIMAL_PAIRS:
+            out.append((f"{a}->{b}", animal(folder, a), animal(folder, b), None))
+    return out + furniture_pairs()
+
+
+def group(name: str) -> str:
+    """procedural, animals or real furniture, from a pair's name."""
+    if ": " in name:
+        return "real furniture"
+    return "animals" if "->" in name and name.split("->")[0] in dict(ANIMAL_PAIRS) \
+        else "procedural"
+
+
+def real_targets(rows) -> None:
+    """Issue 17's targets on the real furniture pairs, for cage-bend and cage."""
+    if not rows:
+        return
+    print(f"\nreal furniture, {len(rows)} pairs: issue 17's targets (medians over pairs)")
+    for m in ("cage-bend", "cage"):
+        cd = median(rows, m, "cd") / median(rows, "scale", "cd")
+        dcot = median(rows, m, "dcotlap") / median(rows, "scale", "dcotlap")
+        print(f"  {m:<10} CD / scale {cd:.3f} (<= 0.5), dCotLap / scale {dcot:.2f} (<= 2), "
+              f"part non-affinity {median(rows, m, 'part_median'):.3f}% (<= 0.5), worst "
+              f"part {median(rows, m, 'part_worst'):.3f}% (<= 2), planarity p95 "
+              f"{median(rows, m, 'planar_p95'):.2f} deg (<= 2), "
+              f"{median(rows, m, 'seconds'):.2f} s a pair")
+
+
+def structure_table(rows) -> None:
+    """Part non-affinity median / worst (%) and planarity p95 (degrees) per pair, then the
+    medians of each group (the median over pairs of the worst part too)."""
+    print("\nstructure: part non-affinity % median / worst part, planarity 95th percentile "
+          "deg")
+    print(f"{'pair':<48}" + "".join(f"{m:>22}" for m in METHODS))
+    for row in rows:
+        print(f"{row['pair'][:47]:<48}" + "".join(
+            f"{row[m]['part_median']:>7.2f}/{row[m]['part_worst']:>6.2f}/"
+            f"{row[m]['planar_p95']:>6.2f}  " for m in METHODS))
+    for name in ("procedural", "animals", "real furniture"):
+        sel = [r for r in rows if group(r["pair"]) == name]
+        if not sel:
+            continue
+        print(f"{'median, ' + name + f' ({len(sel)})':<48}" + "".join(
+            f"{median(sel, m, 'part_median'):>7.2f}/{median(sel, m, 'part_worst'):>6.2f}/"
+            f"{median(sel, m, 'planar_p95'):>6.2f}  " for m in METHODS))
+        print(f"{'  CD x1e2, dCotLap x1e3, seconds':<48}" + "".join(
+            f"{median(sel, m, 'cd'):>7.3f}/{median(sel, m, 'dcotlap'):>6.3f}/"
+            f"{median(sel, m, 'seconds'):>6.2f}  " for m in METHODS))
 
 
 def run(source, target, method, symmetry):
@@ -92,12 +193,22 @@ def run(source, target, method, symmetry):
     if method.startswith("cage"):
         kwargs = {"symmetry": symmetry,
                   "reference": "source" if method == "cage-src" else "aligned"}
+        if method == "cage-bend":
+            kwargs["weights"] = {"parts": 0.0}
         method = "cage"
-    result = cagekit.deform(source, target, method=method, **kwargs)
+    try:
+        result = cagekit.deform(source, target, method=method, **kwargs)
+    except InputError as exc:  # nricp_amberg's system can be singular on real meshes
+        print(f"  {method} failed: {exc}", file=sys.stderr)
+        return dict.fromkeys(("cd", "dcotlap", "seconds", "part_median", "part_worst",
+                              "planar_p95", "seconds_cage_given"), float("nan")), None
     seconds = time.perf_counter() - t0
     figures = cagekit.evaluate(source, target, (result.vertices, source[1]))
-    row = {"cd": figures["cd_x1e2"], "dcotlap": figures["dcotlap_x1e3"], "seconds": seconds}
-    if method == "cage" and kwargs["reference"] == "aligned":
+    row = {"cd": figures["cd_x1e2"], "dcotlap": figures["dcotlap_x1e3"], "seconds": seconds,
+           "part_median": 100 * figures["part_nonaffinity_median"],
+           "part_worst": 100 * figures["part_nonaffinity_worst"],
+           "planar_p95": figures["planarity_p95_deg"]}
+    if method == "cage" and kwargs["reference"] == "aligned" and "weights" not in kwargs:
         t0 = time.perf_counter()
         cagekit.deform(source, target, cage=(result.cage_v, result.cage_f), **kwargs)
         row["seconds_cage_given"] = time.perf_counter() - t0
@@ -105,7 +216,8 @@ def run(source, target, method, symmetry):
 
 
 def median(rows, method, key):
-    return float(np.median([r[method][key] for r in rows]))
+    """The median over pairs, failed runs (NaN) left out."""
+    return float(np.nanmedian([r[method][key] for r in rows]))
 
 
 def speed_check():
@@ -138,6 +250,37 @@ def picture(path, source, target, name, symmetry):
                   size=(360, 360))
 
 
+def furniture_pictures(folder, count: int = 6) -> list[str]:
+    """Pictures of ``count`` real furniture pairs (the first pair of each kind, then the
+    second ones): source, target, box scaling, cage without and with the part term, each
+    result captioned with CD x1e2, worst-part non-affinity % and planarity p95."""
+    from cagekit.render import render_meshes
+
+    by_kind = {}
+    for name, source, target, _ in furniture_pairs():
+        by_kind.setdefault(name.split(":")[0], []).append((name, source, target))
+    chosen = [members[rank] for rank in range(PAIRS_PER_KIND)
+              for members in by_kind.values() if rank < len(members)][:count]
+    paths = []
+    os.makedirs(folder, exist_ok=True)
+    for i, (name, source, target) in enumerate(chosen):
+        panels, titles = [source, target], ["source", "target"]
+        for label, kwargs in (("scale", {"method": "scale"}),
+                              ("cage, parts free", {"weights": {"parts": 0.0}}),
+                              ("cage (default)", {})):
+            result = cagekit.deform(source, target, **kwargs)
+            f = cagekit.evaluate(source, target, (result.vertices, source[1]))
+            panels.append((result.vertices, source[1]))
+            titles.append(f"{label}\nCD {f['cd_x1e2']:.2f}, worst part "
+                          f"{100 * f['part_nonaffinity_worst']:.1f}%, planes "
+                          f"{f['planarity_p95_deg']:.1f} deg")
+        path = os.path.join(folder, f"deform_real_{i}.png")
+        render_meshes(panels, path, titles=titles, caption=name, size=(330, 330))
+        paths.append(path)
+        print(f"wrote {path}: {name}", flush=True)
+    return paths
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cache", default="/tmp/cgal",
@@ -145,10 +288,12 @@ def main():
     parser.add_argument("--picture", default=None, help="PNG of one typical pair")
     parser.add_argument("--picture-pair", default="chair 2->3")
     parser.add_argument("--json", default=None, help="write every figure to this file")
+    parser.add_argument("--furniture-pictures", default=None, metavar="DIR",
+                        help="write pictures of 6 real furniture pairs into DIR")
     args = parser.parse_args()
 
     rows = []
-    header = (f"{'pair':<22}{'verts':>6}"
+    header = (f"{'pair':<48}{'verts':>6}"
               + "".join(f"{m + ' CD':>11}{'dCotLap':>9}{'s':>7}" for m in METHODS)
               + f"{'s, cage given':>14}")
     print("CD x1e2, dCotLap x1e3 (cagekit.evaluate, 5000 samples, seed 0), seconds")
@@ -161,23 +306,25 @@ def main():
         rows.append(row)
         if name == args.picture_pair:
             chosen = (source, target, name, symmetry)
-        print(f"{name:<22}{len(source[0]):>6}" + "".join(
+        print(f"{name[:47]:<48}{len(source[0]):>6}" + "".join(
             f"{row[m]['cd']:>11.3f}{row[m]['dcotlap']:>9.4f}{row[m]['seconds']:>7.2f}"
             for m in METHODS) + f"{row['cage']['seconds_cage_given']:>14.2f}", flush=True)
-    print(f"{'median':<28}" + "".join(
+    print(f"{'median':<54}" + "".join(
         f"{median(rows, m, 'cd'):>11.3f}{median(rows, m, 'dcotlap'):>9.4f}"
         f"{median(rows, m, 'seconds'):>7.2f}" for m in METHODS)
         + f"{median(rows, 'cage', 'seconds_cage_given'):>14.2f}")
     cd_ratio = median(rows, "cage", "cd") / median(rows, "scale", "cd")
     dcot_ratio = median(rows, "cage", "dcotlap") / median(rows, "nricp", "dcotlap")
     speedup = median(rows, "nricp", "seconds") / median(rows, "cage", "seconds")
-    per_pair_cd = np.median([r["cage"]["cd"] / r["scale"]["cd"] for r in rows])
-    per_pair_dcot = np.median([r["cage"]["dcotlap"] / r["nricp"]["dcotlap"] for r in rows])
+    per_pair_cd = np.nanmedian([r["cage"]["cd"] / r["scale"]["cd"] for r in rows])
+    per_pair_dcot = np.nanmedian([r["cage"]["dcotlap"] / r["nricp"]["dcotlap"] for r in rows])
     src_cd = median(rows, "cage-src", "cd") / median(rows, "scale", "cd")
     src_dcot = median(rows, "cage-src", "dcotlap") / median(rows, "nricp", "dcotlap")
-    per_pair_speed = np.median([r["nricp"]["seconds"] / r["cage"]["seconds"] for r in rows])
+    per_pair_speed = np.nanmedian([r["nricp"]["seconds"] / r["cage"]["seconds"] for r in rows])
     speedup_given = (median(rows, "nricp", "seconds")
                      / median(rows, "cage", "seconds_cage_given"))
+    structure_table(rows)
+    real_targets([r for r in rows if group(r["pair"]) == "real furniture"])
     speed = speed_check()
     print()
     print(f"{len(rows)} pairs. Targets on the medians:")
@@ -197,6 +344,8 @@ def main():
     if args.picture and chosen is not None:
         picture(args.picture, *chosen)
         print(f"wrote {args.picture}")
+    if args.furniture_pictures:
+        furniture_pictures(args.furniture_pictures)
 
 
 if __name__ == "__main__":
