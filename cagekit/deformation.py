@@ -446,6 +446,10 @@ def _nricp(Vs_box, Fs, Vt_n, Ft):
 
     if not len(Fs):
         raise InputError("method nricp needs a source mesh with faces, got a point cloud")
+    loose = len(Vs_box) - len(np.unique(Fs))
+    if loose:
+        raise InputError(f"method nricp needs every source vertex on a face; {loose} are on "
+                         "none (method cage takes them)")
     source = trimesh.Trimesh(Vs_box, Fs, process=False, validate=False)
     try:
         if len(Ft):

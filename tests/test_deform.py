@@ -288,3 +288,12 @@ def test_the_parts_of_a_multi_part_source_stay_affine():
     assert figures["bent"]["part_nonaffinity_worst"] > 0.01
     assert figures["kept"]["cd"] < 0.5 * figures["scaled"]["cd"]
     assert "parts" in kept.losses and "parts" not in bent.losses  # the term ran or not
+
+
+def test_nricp_refuses_vertices_on_no_face_in_one_line():
+    # trimesh's nricp_amberg fails deep inside scipy on such a mesh (a shape mismatch, or
+    # a singular system); cagekit names the problem instead
+    V, F = bumpy_blob()
+    loose = np.vstack([V, [[0.0, 0.0, 0.0]]])
+    with pytest.raises(InputError, match="1 are on none"):
+        cagekit.deform((loose, F), (V * [1.2, 1.0, 1.0], F), method="nricp")
