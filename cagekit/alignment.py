@@ -16,7 +16,8 @@ import numpy as np
 from cagekit.errors import InputError
 from cagekit.geometry import as_vertices
 
-__all__ = ["box_scale", "Similarity", "similarity_alignment", "box_alignment", "FLAT"]
+__all__ = ["box_scale", "partial_box_scale", "Similarity", "similarity_alignment",
+           "box_alignment", "FLAT"]
 
 #: an axis below this share of the largest half-extent is flat (its box factor stays 1)
 FLAT = 1e-9
@@ -45,6 +46,33 @@ def box_scale(Vs_n, Vt_n) -> np.ndarray:
     ht = 0.5 * np.ptp(Vt_n, axis=0)
     flat = (hs < FLAT * hs.max()) | (ht < FLAT * ht.max())
     return np.where(flat, 1.0, ht / np.where(flat, 1.0, hs))
+
+
+def partial_box_scale(Vs_n, Vt_n) -> np.ndarray:
+    """:func:`box_scale` onto a scan seen from one side: no factor below the median.
+
+    A scan covers the target's extent across the view and only part of it along the
+    view (a chair seen from behind is a flat backrest); that axis's factor comes out too
+    small and would squash the source. Each factor is raised to at least the median of
+    the three: the target is assumed to keep the source's proportion there.
+
+    Parameters
+    ----------
+    Vs_n, Vt_n : (n, 3) and (m, 3) float64
+        Source and scan, each normalised.
+
+    Returns
+    -------
+    (3,) float64
+
+    Examples
+    --------
+    >>> s = np.array([[-1.0, -1, -1], [1, 1, 1]])
+    >>> partial_box_scale(s, np.array([[-2.0, -1, -0.2], [2, 1, 0.2]]))
+    array([2., 1., 1.])
+    """
+    factors = box_scale(Vs_n, Vt_n)
+    return np.maximum(factors, np.median(factors))
 
 
 @dataclass(frozen=True)

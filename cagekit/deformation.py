@@ -18,8 +18,9 @@ shape and cage terms with the box-aligned source, so the box stretch is free and
 parts stay straight; ``reference="source"`` (the paper's) charges every stretch. Cage
 symmetry asks for a symmetric motion, not a symmetric cage
 (:func:`cagekit.losses.cage_symmetry_loss`). Samples are drawn once from ``seed``; point
-clouds use 16-nearest-neighbour neighbourhoods. A partial scan is accepted, but the result
-is squashed towards its seen part. See docs/architecture.md.
+clouds use 16-nearest-neighbour neighbourhoods. A scan seen from one side takes
+``target_kind="partial"`` (with full Chamfer the source is squashed towards the seen part).
+See docs/architecture.md.
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from cagekit import losses
-from cagekit.alignment import box_scale
+from cagekit.alignment import box_scale, partial_box_scale
 from cagekit.cage import check_cage
 from cagekit.coords import bind
 from cagekit.coords.binding import warn_outside
@@ -50,6 +51,7 @@ __all__ = ["CageEnergy", "CageProblem", "CageSolution", "DeformResult", "DEFAULT
            "METHODS", "deform", "solve"]
 
 METHODS = ("cage", "scale", "nricp")
+TARGET_KINDS = ("full", "partial")
 #: weight of the part-affinity term (:func:`cagekit.losses.part_affinity_loss`) on sources
 #: of two or more parts (connected components of 30 vertices or more); chosen on real
 #: furniture pairs (docs/benchmarks.md, "Per-pair deformation")
@@ -160,10 +162,14 @@ class CageEnergy:
     parts_matrix : (k, k) float64, optional
         The part-affinity term as a quadratic form of the cage
         (:func:`cagekit.losses.part_affinity_matrix`).
+    partial : bool
+        The target is a scan seen from one side: the alignment term is
+        :func:`cagekit.losses.partial_chamfer_loss`, not Chamfer.
     """
 
     def __init__(self, W_samples, target, W_shape, shape_ref, cage_f, cage_ref, weights,
-                 symmetry=None, W_landmarks=None, landmarks=None, parts_matrix=None):
+                 symmetry=None, W_landmarks=None, landmarks=None, parts_matrix=None,
+                 partial=False):
         self.W_samples, self.target = W_samples, target
         self.tree = cKDTree(target) if target is not None else None
         self.W_shape, self.shape_ref = W_shape, shape_ref
@@ -175,6 +181,7 @@ class CageEnergy:
             self.partners = losses.mirror_partners(cage_ref, symmetry)
         self.W_landmarks, self.landmarks = W_landmarks, landmarks
         self.parts_matrix = parts_matrix
+        self.partial = partial
 
     def evaluate(self, C):
         """Weighted energy, its gradient (k, 3) and each active term's unweighted value."""
@@ -190,7 +197,8 @@ class CageEnergy:
         Y = None
         if w["chamfer"] and self.target is not None:
             Y = self.W_samples @ C
-            value, g = losses.chamfer_loss(Y, self.target, self.tree)
+            value, g = (losses.partial_chamfer_loss(Y, self.target, self.tree) if self.partial
+                        else losses.chamfer_loss(Y, self.target, self.tree))
             add("chamfer", value, self.W_samples.T @ g)
         if w["landmarks"] and self.landmarks is not None:
             value, g = losses.landmark_loss(self.W_landmarks @ C, self.landmarks)
@@ -346,7 +354,7 @@ class CageProblem:
     @classmethod
     def create(cls, source, target, cage, *, symmetry=None, landmarks=None, weights=None,
                samples=2000, shape_points=500, reference="aligned", coords="mvc",
-               seed=0) -> CageProblem:
+               seed=0, target_kind="full") -> CageProblem:
         """Sample, bind and set up the energy of one pair (all arrays in unit frames).
 
         Parameters
@@ -355,7 +363,7 @@ class CageProblem:
             Normalised on their own (``F`` empty for a point cloud).
         cage : (cage_v, cage_f) pair
             The source cage in the source's unit frame, checked already.
-        symmetry, weights, samples, shape_points, reference, coords, seed
+        symmetry, weights, samples, shape_points, reference, coords, seed, target_kind
             As :func:`deform` takes them.
         landmarks : (source points (l, 3), target points (l, 3)), optional
             In the unit frames.
@@ -376,13 +384,14 @@ class CageProblem:
         W_samples = W[n:n + s]
         W_landmarks = W[n + s:] if src_lm is not None else None
         W_shape = np.ascontiguousarray(W[:n][used])
-        box_cage = binding.cage_v * box_scale(Vs_n, Vt_n)
+        scale = partial_box_scale if target_kind == "partial" else box_scale
+        box_cage = binding.cage_v * scale(Vs_n, Vt_n)
         reference_cage = box_cage if reference == "aligned" else binding.cage_v
         shape_ref = losses.shape_reference(W_shape @ reference_cage, own, index, mask)
         parts_matrix = _part_term(Vs_n, Fs, W[:n]) if weights["parts"] else None
         energy = CageEnergy(W_samples, T, W_shape, shape_ref, binding.cage_f,
                             reference_cage, weights, symmetry, W_landmarks, tgt_lm,
-                            parts_matrix)
+                            parts_matrix, target_kind == "partial")
         return cls(W[:n], binding.cage_v, binding.cage_f, box_cage, energy, weights)
 
 
@@ -467,7 +476,8 @@ def deform(source, target, cage=None, *, method: str = "cage", symmetry: str | N
            landmarks=None, weights: dict | None = None, faces: int = 200,
            samples: int = 2000, shape_points: int = 500, max_evaluations: int = 60,
            tolerance: float = 1e-7, reference: str = "aligned", coords: str = "mvc",
-           seed: int = 0, progress=None, initial_cage=None, check: bool = True) -> DeformResult:
+           seed: int = 0, progress=None, initial_cage=None, check: bool = True,
+           target_kind: str = "full") -> DeformResult:
     """Deform a source so it takes the shape of a target, keeping its detail.
 
     Parameters
@@ -531,6 +541,13 @@ def deform(source, target, cage=None, *, method: str = "cage", symmetry: str | N
     check : bool, default True
         Refuse a given ``cage`` that intersects itself (as :func:`cagekit.bind`); False
         skips that test (a network's predicted cage, which may fold).
+    target_kind : {"full", "partial"}, default "full"
+        ``"partial"``: the target is a scan seen from one side; method ``cage`` aligns
+        with :func:`cagekit.losses.partial_chamfer_loss` (every scanned point onto the
+        source, the source onto the scan at a tenth of the weight), so the source's
+        unseen side is not squashed onto the seen one; every method's box alignment
+        keeps each axis's stretch at least the median of the three
+        (:func:`cagekit.alignment.partial_box_scale`: the scan is shallow along the view).
 
     Returns
     -------
@@ -567,10 +584,13 @@ def deform(source, target, cage=None, *, method: str = "cage", symmetry: str | N
     Vs_n, Vt_n = fs.to_unit(Vs), ft.to_unit(Vt)
     result = DeformResult(vertices=Vs, faces=Fs, method=method, source_frame=fs,
                           target_frame=ft)
+    if target_kind not in TARGET_KINDS:
+        raise InputError(f"target_kind must be full or partial, got {target_kind!r}")
+    scale = partial_box_scale if target_kind == "partial" else box_scale
     if method == "scale":
-        result.vertices = ft.to_world(Vs_n * box_scale(Vs_n, Vt_n))
+        result.vertices = ft.to_world(Vs_n * scale(Vs_n, Vt_n))
     elif method == "nricp":
-        result.vertices = ft.to_world(_nricp(Vs_n * box_scale(Vs_n, Vt_n), Fs, Vt_n, Ft))
+        result.vertices = ft.to_world(_nricp(Vs_n * scale(Vs_n, Vt_n), Fs, Vt_n, Ft))
     else:
         lm = _landmarks_in_frames(landmarks, fs, ft)
         if cage is None:
@@ -594,7 +614,8 @@ def deform(source, target, cage=None, *, method: str = "cage", symmetry: str | N
         problem = CageProblem.create(
             (Vs_n, Fs), (Vt_n, Ft), (cage_n, cage_f), symmetry=symmetry,
             landmarks=None if lm[0] is None else lm, weights=weights, samples=samples,
-            shape_points=shape_points, reference=reference, coords=coords, seed=seed)
+            shape_points=shape_points, reference=reference, coords=coords, seed=seed,
+            target_kind=target_kind)
         solution = solve(problem, C_start, max_evaluations=max_evaluations,
                          tolerance=tolerance, progress=progress)
         result.set_solution(problem, solution)

@@ -32,6 +32,7 @@ __all__ = [
     "ShapeReference",
     "cage_symmetry_loss",
     "chamfer_loss",
+    "partial_chamfer_loss",
     "landmark_loss",
     "laplacian_loss",
     "mirror",
@@ -81,8 +82,9 @@ def _check_points(P, what):
         raise FloatingPointError(f"{what} has coordinates too large to square (> 1e150)")
 
 
-def _chamfer_pair(P, Q, tree_Q=None):
-    """Chamfer value and the gradients with respect to both point sets."""
+def _chamfer_pair(P, Q, tree_Q=None, weight_pq=1.0):
+    """Chamfer value and the gradients with respect to both point sets (the ``P -> Q``
+    direction weighted by ``weight_pq``)."""
     _check_points(P, "the moving point set")
     _check_points(Q, "the fixed point set")
     tree_Q = cKDTree(Q) if tree_Q is None else tree_Q
@@ -91,9 +93,10 @@ def _chamfer_pair(P, Q, tree_Q=None):
     e_pq = P - Q[to_q]  # (s, 3): each P point minus its nearest Q point
     e_qp = Q - P[to_p]  # (t, 3)
     s, t = len(P), len(Q)
-    value = np.einsum("ij,ij->", e_pq, e_pq) / s + np.einsum("ij,ij->", e_qp, e_qp) / t
-    grad_P = 2.0 * e_pq / s - _scatter(s, to_p, 2.0 * e_qp / t)
-    grad_Q = 2.0 * e_qp / t - _scatter(t, to_q, 2.0 * e_pq / s)
+    value = (weight_pq * np.einsum("ij,ij->", e_pq, e_pq) / s
+             + np.einsum("ij,ij->", e_qp, e_qp) / t)
+    grad_P = 2.0 * weight_pq * e_pq / s - _scatter(s, to_p, 2.0 * e_qp / t)
+    grad_Q = 2.0 * e_qp / t - _scatter(t, to_q, 2.0 * weight_pq * e_pq / s)
     return _finite(value, "Chamfer distance"), grad_P, grad_Q
 
 
@@ -123,6 +126,41 @@ def chamfer_loss(P, Q, tree_Q: cKDTree | None = None) -> tuple[float, np.ndarray
     (8.0, [[0.0, 0.0, -8.0]])
     """
     value, grad_P, _ = _chamfer_pair(P, Q, tree_Q)
+    return value, grad_P
+
+
+def partial_chamfer_loss(P, Q, tree_Q: cKDTree | None = None,
+                         source_weight: float = 0.1) -> tuple[float, np.ndarray]:
+    """Chamfer onto a partial target: the moving points' own direction down-weighted.
+
+    A scan seen from one side covers only part of the target: every scanned point
+    should lie on the deformed source (``Q -> P``, full weight), but the source's unseen
+    side has no scanned point to go to, and the ``P -> Q`` direction at full weight
+    squashes it onto the seen side.
+
+    Parameters
+    ----------
+    P : (s, 3) float64
+        Moving points (deformed source samples).
+    Q : (t, 3) float64
+        Fixed points (the scan's points).
+    tree_Q : scipy.spatial.cKDTree, optional
+    source_weight : float, default 0.1
+        Weight of ``mean_i min_j |P_i - Q_j|^2``.
+
+    Returns
+    -------
+    value : float
+        ``source_weight * mean_i min_j |P_i - Q_j|^2 + mean_j min_i |P_i - Q_j|^2``.
+    grad : (s, 3) float64
+
+    Examples
+    --------
+    >>> value, grad = partial_chamfer_loss(np.array([[0.0, 0, 0]]), np.array([[0.0, 0, 2]]))
+    >>> round(value, 6), grad.round(6).tolist()
+    (4.4, [[0.0, 0.0, -4.4]])
+    """
+    value, grad_P, _ = _chamfer_pair(P, Q, tree_Q, source_weight)
     return value, grad_P
 
 

@@ -297,3 +297,36 @@ def test_nricp_refuses_vertices_on_no_face_in_one_line():
     loose = np.vstack([V, [[0.0, 0.0, 0.0]]])
     with pytest.raises(InputError, match="1 are on none"):
         cagekit.deform((loose, F), (V * [1.2, 1.0, 1.0], F), method="nricp")
+
+
+def _scan_from_below(V, F, rays=60):
+    """The first hits of a grid of vertical rays cast upwards: what a scanner below sees."""
+    mesh = trimesh.Trimesh(V, F, process=False)
+    lo, hi = V.min(axis=0), V.max(axis=0)
+    x, z = np.meshgrid(np.linspace(lo[0], hi[0], rays), np.linspace(lo[2], hi[2], rays))
+    origins = np.column_stack([x.ravel(), np.full(x.size, lo[1] - 0.1), z.ravel()])
+    directions = np.tile([0.0, 1.0, 0.0], (len(origins), 1))
+    return mesh.ray.intersects_location(origins, directions, multiple_hits=False)[0]
+
+
+def test_a_partial_target_is_reached_without_squashing_the_unseen_side():
+    # a chair seen from below (seat underside, legs; no backrest): treated as a full
+    # target the source is squashed onto it; with target_kind="partial" the result is
+    # much closer to the full target it was scanned from
+    from cagekit.datasets import synthetic
+    from cagekit.frame import Frame
+    from cagekit.metrics import chamfer
+
+    source, target = synthetic.chair(seed=4), synthetic.chair(seed=5)
+    scan = _scan_from_below(*target)
+    frame = Frame.of(target[0])
+
+    def cd(result):
+        return chamfer(frame.to_unit(result.vertices), source[1], frame.to_unit(target[0]),
+                       target[1], n_samples=3000, seed=0)
+
+    as_full = cd(cagekit.deform(source, (scan, None), symmetry="x"))
+    partial = cd(cagekit.deform(source, (scan, None), symmetry="x", target_kind="partial"))
+    assert partial < 0.5 * as_full
+    with pytest.raises(InputError, match="target_kind"):
+        cagekit.deform(source, (scan, None), target_kind="half")

@@ -27,6 +27,7 @@ from cagekit.losses import (
     part_affinity_loss,
     part_affinity_matrix,
     part_bases,
+    partial_chamfer_loss,
     shape_losses,
     shape_reference,
     symmetry_loss,
@@ -627,3 +628,16 @@ def test_part_affinity_matrix_is_the_loss_as_a_quadratic_form():
     Q = part_affinity_matrix(W, parts)
     assert np.sum(C * (Q @ C)) == pytest.approx(value, rel=1e-10)
     np.testing.assert_allclose(2 * Q @ C, W.T @ grad, rtol=1e-9, atol=1e-12)
+
+
+@settings(max_examples=30)
+@given(seed=SEEDS, weight=st.floats(0.0, 2.0))
+def test_partial_chamfer_gradient_and_full_weight_is_chamfer(seed, weight):
+    rng = np.random.default_rng(seed)
+    P = rng.uniform(-1, 1, (9, 3))
+    Q = rng.uniform(-1, 1, (7, 3))
+    assume(nn_margin(P, Q) > 1e-4)
+    assert_grad(lambda X: partial_chamfer_loss(X, Q, source_weight=weight), P)
+    full, grad = partial_chamfer_loss(P, Q, source_weight=1.0)
+    assert full == pytest.approx(chamfer_loss(P, Q)[0])
+    np.testing.assert_allclose(grad, chamfer_loss(P, Q)[1])

@@ -129,6 +129,11 @@ def _load_landmark_pair(src_path, tgt_path):
               show_default=True,
               help="Shape and cage terms compare with the box-aligned source (stretch "
                    "is free) or with the source as given (the paper's; cage weight 1).")
+@click.option("--target-kind", type=click.Choice(["full", "partial"]), default="full",
+              show_default=True,
+              help="partial: TARGET is a scan seen from one side (the alignment pulls every "
+                   "scanned point onto SOURCE, SOURCE onto the scan at a tenth of the "
+                   "weight, so SOURCE's unseen side is not squashed).")
 @click.option("--coords", type=click.Choice(list(COORDINATE_METHODS)), default="mvc",
               show_default=True, help="Cage coordinates.")
 @click.option("--preview", type=click.Path(dir_okay=False), default=None,
@@ -148,12 +153,12 @@ def _load_landmark_pair(src_path, tgt_path):
 @debug_option
 @click.pass_context
 def deform(ctx, source, target, out, method, cage_path, faces, save_cage, symmetry,
-           landmarks, weights, reference, coords, model_path, refine, preview, up, seed,
-           as_json):
+           landmarks, weights, reference, target_kind, coords, model_path, refine, preview,
+           up, seed, as_json):
     """Deform SOURCE so that it takes TARGET's shape, keeping SOURCE's detail.
 
     SOURCE is a mesh (or a point cloud, whose points move); TARGET a mesh or a point
-    cloud (noisy or coarse; a partial scan squashes SOURCE towards its seen side). With
+    cloud (noisy or coarse; a scan seen from one side wants --target-kind partial). With
     --method cage (the default) SOURCE's cage is moved to minimise Chamfer distance to
     TARGET plus the paper's shape-preservation and cage terms (see
     cagekit/deformation.py); the result is written in TARGET's frame and units. --json
@@ -167,6 +172,9 @@ def deform(ctx, source, target, out, method, cage_path, faces, save_cage, symmet
     start_command(ctx)
     outputs = _check_options(ctx, source, target, out, method, cage_path, save_cage,
                              symmetry, landmarks, weights, model_path, refine, preview)
+    if model_path and target_kind != "full":
+        raise click.UsageError("--target-kind partial applies to the per-pair optimisation "
+                               "only, not to --model")
     model = _load_model(model_path) if model_path else None
     src, tgt, cage, pairs, write = _load_inputs(source, target, out, cage_path, landmarks)
     options = {"symmetry": None if symmetry == "none" else symmetry,
@@ -176,7 +184,7 @@ def deform(ctx, source, target, out, method, cage_path, faces, save_cage, symmet
                       and (model is None or refine)) as bar:
         try:
             result = _run(src, tgt, cage, pairs, model, method, faces, refine, seed,
-                          options, bar_callback(bar))
+                          options, bar_callback(bar), target_kind)
         except InputError as exc:
             raise _blamed(exc, source, target, cage_path, landmarks) from None
     write(out, result.vertices, result.faces)
@@ -237,7 +245,8 @@ def _load_inputs(source, target, out, cage_path, landmarks):
     return src, tgt, cage, pairs, write
 
 
-def _run(src, tgt, cage, pairs, model, method, faces, refine, seed, options, progress):
+def _run(src, tgt, cage, pairs, model, method, faces, refine, seed, options, progress,
+         target_kind="full"):
     """The deformation: per-pair (``cagekit.deform``) or by the model."""
     import warnings
 
@@ -254,7 +263,8 @@ def _run(src, tgt, cage, pairs, model, method, faces, refine, seed, options, pro
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", OutsideCageWarning)
         return deform(src, tgt, cage, method=method, landmarks=pairs, faces=faces,
-                      seed=seed, check=False, progress=progress, **options)
+                      seed=seed, check=False, progress=progress, target_kind=target_kind,
+                      **options)
 
 
 def _blamed(exc, source, target, cage_path, landmarks):
