@@ -29,7 +29,7 @@ cage, with the cage fitted inside the call and with the cage given.
 Usage::
 
     python benchmarks/bench_deform.py [--cache DIR] [--picture PNG] [--json FILE]
-        [--furniture-pictures DIR]
+        [--furniture-pictures DIR] [--partial-only]
 
 ``--cache`` is where ``/usr/share/doc/libcgal-dev/data.tar.gz`` is (or will be)
 unpacked; without the archive the animal pairs are skipped.
@@ -250,6 +250,66 @@ def picture(path, source, target, name, symmetry):
                   size=(360, 360))
 
 
+def one_view_scan(V, F, axis: int = 2, rays: int = 120) -> np.ndarray:
+    """The points of a mesh a scanner sees from one side: the first hits of a
+    ``rays x rays`` grid of parallel rays along +``axis`` (trimesh's ray caster)."""
+    import trimesh
+
+    mesh = trimesh.Trimesh(V, F, process=False)
+    lo, hi = V.min(axis=0), V.max(axis=0)
+    u, v = [a for a in range(3) if a != axis]
+    grid = np.stack(np.meshgrid(np.linspace(lo[u], hi[u], rays),
+                                np.linspace(lo[v], hi[v], rays)), axis=-1).reshape(-1, 2)
+    origins = np.zeros((len(grid), 3))
+    origins[:, u], origins[:, v] = grid[:, 0], grid[:, 1]
+    origins[:, axis] = lo[axis] - 0.1 * (hi[axis] - lo[axis])
+    directions = np.zeros_like(origins)
+    directions[:, axis] = 1.0
+    return mesh.ray.intersects_location(origins, directions, multiple_hits=False)[0]
+
+
+def _cd_x1e2(frame, source, target, X) -> float:
+    """CD x1e2 of the deformed source ``X`` against the full target, in its frame."""
+    from cagekit.metrics import chamfer
+
+    return 100 * chamfer(frame.to_unit(X), source[1], frame.to_unit(target[0]), target[1],
+                         n_samples=5000, seed=0)
+
+
+def partial_targets() -> list[dict]:
+    """Real chair pairs onto one-view scans of the target (from the front, z, and the side,
+    x), each result measured against the full target (CD x1e2 in the full target's frame):
+    the cage onto the full target (the reference), onto the scan as if full, onto the scan
+    with ``target_kind="partial"``, and box scaling onto the scan."""
+    from cagekit.frame import Frame
+
+    rows = []
+    print("\npartial targets: CD x1e2 against the full target")
+    print(f"{'pair':<42}{'view':>5}{'points':>8}{'full':>8}{'as full':>9}{'partial':>9}"
+          f"{'scale':>8}")
+    for name, source, target, _ in furniture_pairs():
+        if not name.startswith("chair"):
+            continue
+        frame = Frame.of(target[0])
+        full = _cd_x1e2(frame, source, target, cagekit.deform(source, target).vertices)
+        for axis, view in ((2, "z"), (0, "x")):
+            scan = (one_view_scan(*target, axis=axis), None)
+            row = {"pair": name, "view": view, "points": len(scan[0]), "full": full}
+            for key, kwargs in (("as full", {}), ("partial", {"target_kind": "partial"}),
+                                ("scale", {"method": "scale"})):
+                X = cagekit.deform(source, scan, **kwargs).vertices
+                row[key] = _cd_x1e2(frame, source, target, X)
+            rows.append(row)
+            print(f"{name[:41]:<42}{view:>5}{row['points']:>8}" + "".join(
+                f"{row[k]:>{w}.3f}" for k, w in (("full", 8), ("as full", 9),
+                                                  ("partial", 9), ("scale", 8))), flush=True)
+    if rows:
+        print(f"{'median':<55}" + "".join(
+            f"{np.median([r[k] for r in rows]):>{w}.3f}"
+            for k, w in (("full", 8), ("as full", 9), ("partial", 9), ("scale", 8))))
+    return rows
+
+
 def furniture_pictures(folder, count: int = 6) -> list[str]:
     """Pictures of ``count`` real furniture pairs (the first pair of each kind, then the
     second ones): source, target, box scaling, cage without and with the part term, each
@@ -290,7 +350,12 @@ def main():
     parser.add_argument("--json", default=None, help="write every figure to this file")
     parser.add_argument("--furniture-pictures", default=None, metavar="DIR",
                         help="write pictures of 6 real furniture pairs into DIR")
+    parser.add_argument("--partial-only", action="store_true",
+                        help="only the partial-target comparison (real chairs)")
     args = parser.parse_args()
+    if args.partial_only:
+        partial_targets()
+        return
 
     rows = []
     header = (f"{'pair':<48}{'verts':>6}"
@@ -344,6 +409,10 @@ def main():
     if args.picture and chosen is not None:
         picture(args.picture, *chosen)
         print(f"wrote {args.picture}")
+    partial = partial_targets()
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump({"pairs": rows, "speed": speed, "partial": partial}, f, indent=1)
     if args.furniture_pictures:
         furniture_pictures(args.furniture_pictures)
 
