@@ -78,9 +78,10 @@ class SelfContact:
         self._dhat = float(value)
         self.potential = self._ipc.BarrierPotential(self._dhat, 1.0)
 
-    def _collisions(self, V):
+    def _collisions(self, V, reach=None):
+        """The pairs of elements closer than ``reach`` (default ``dhat``)."""
         collisions = self._ipc.NormalCollisions()
-        collisions.build(self.mesh, V, self.dhat)
+        collisions.build(self.mesh, V, self.dhat if reach is None else reach)
         return collisions
 
     def clearance(self, cage_v) -> float:
@@ -94,9 +95,7 @@ class SelfContact:
         0.485
         """
         V = np.asfortranarray(cage_v, dtype=np.float64)
-        collisions = self._ipc.NormalCollisions()
-        reach = float(np.linalg.norm(np.ptp(V, axis=0)))
-        collisions.build(self.mesh, V, reach)
+        collisions = self._collisions(V, reach=float(np.linalg.norm(np.ptp(V, axis=0))))
         if len(collisions) == 0:
             return np.inf
         return float(np.sqrt(collisions.compute_minimum_distance(self.mesh, V)))

@@ -20,7 +20,8 @@ import numpy as np
 
 from cagekit.errors import CageError
 
-__all__ = ["CageTopology", "cage_topology", "unique_edges", "face_components", "check_cage",
+__all__ = ["CageTopology", "cage_topology", "unique_edges", "face_components",
+           "vertex_components", "check_cage",
            "self_intersecting_faces", "signed_volume", "cage_encloses", "winding_numbers",
            "distance_in_diagonals"]
 
@@ -143,6 +144,24 @@ def face_components(n_vertices: int, faces: np.ndarray) -> np.ndarray:
     rows = np.repeat(np.arange(m), 3)
     graph = coo_matrix((np.ones(3 * m), (rows, faces.ravel())), shape=(m, n_vertices)).tocsr()
     _, labels = connected_components(graph @ graph.T, directed=False)
+    return labels
+
+
+def vertex_components(n_vertices: int, faces: np.ndarray) -> np.ndarray:
+    """The connected component of each vertex through the faces (:func:`face_components`).
+
+    Returns
+    -------
+    (n,) int labels, ``0 .. components - 1``; -1 for a vertex on no face
+
+    Examples
+    --------
+    >>> vertex_components(7, np.array([[0, 1, 2], [3, 4, 5]])).tolist()
+    [0, 0, 0, 1, 1, 1, -1]
+    """
+    faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    labels = np.full(n_vertices, -1)
+    labels[faces.ravel()] = np.repeat(face_components(n_vertices, faces), 3)
     return labels
 
 

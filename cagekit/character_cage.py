@@ -325,7 +325,7 @@ def fit_character_cage(cage_v, cage_f, source_landmarks, target_landmarks, chara
     C = fit.run(Cs, iterations, enclose=False)
     checks = cage_checks(X, C, F)
     # enclosure only pushes walls outwards: landmarks missed now stay missed
-    miss = float(np.quantile(np.linalg.norm(phi @ C - Qa, axis=1), 0.9))
+    miss = fit.landmark_miss(C)
     done = 0
     while checks["outside"] and done < rounds and miss <= MAX_LANDMARK_ERROR:
         C = fit.run(C, iterations, enclose=True)
@@ -333,7 +333,7 @@ def fit_character_cage(cage_v, cage_f, source_landmarks, target_landmarks, chara
         fit.boost_outside(C)
         done += 1
         checks = cage_checks(X, C, F)
-        miss = float(np.quantile(np.linalg.norm(phi @ C - Qa, axis=1), 0.9))
+        miss = fit.landmark_miss(C)
     if miss > MAX_LANDMARK_ERROR:
         checks["valid"] = False
         checks["problems"].append(
@@ -371,16 +371,29 @@ class _Fit:
         self.stiffness = STIFFNESS * (DHAT / self.contact.dhat) ** 3
         self.contacts = np.zeros(0, dtype=np.int64)
         self.boost = np.ones(len(X))
+        self._outside_of = (None, None)  # (cage, its outside mask): one search a cage
+
+    def landmark_miss(self, C) -> float:
+        """The 90th percentile of the landmark misses, in cage diagonals (unit frame)."""
+        return float(np.quantile(np.linalg.norm(self.phi @ C - self.Qa, axis=1), 0.9))
+
+    def outside(self, C) -> np.ndarray:
+        """(n,) bool: the character vertices outside cage ``C`` (winding number below 0.5),
+        found once for a given array ``C``."""
+        cage, mask = self._outside_of
+        if cage is not C:
+            mask = winding_numbers(self.X, C, self.F) < 0.5
+            self._outside_of = (C, mask)
+        return mask
 
     def boost_outside(self, C) -> None:
         """Raise the contact weight of every vertex still outside by :data:`BOOST`."""
-        self.boost[winding_numbers(self.X, C, self.F) < 0.5] *= BOOST
+        self.boost[self.outside(C)] *= BOOST
 
     def run(self, C, iterations: int, enclose: bool) -> np.ndarray:
         for i in range(iterations):
             if enclose and i % OUTSIDE_EVERY == 0:
-                outside = np.flatnonzero(winding_numbers(self.X, C, self.F) < 0.5)
-                self.contacts = np.union1d(self.contacts, outside)
+                self.contacts = np.union1d(self.contacts, np.flatnonzero(self.outside(C)))
             rows, targets = [self.phi], [self.Qa]
             weights = [np.full(len(self.phi), self.landmark_weight)]
             if enclose and len(self.contacts):

@@ -300,17 +300,21 @@ def _shape_rows(Vs_n, Fs, shape_points, rng):
     return used, own, inverse[len(rows):].reshape(index.shape), mask
 
 
+def _box_factors(Vs_n, Vt_n, target_kind) -> np.ndarray:
+    """The coarse stage's per-axis factors: :func:`~cagekit.alignment.box_scale`, or
+    :func:`~cagekit.alignment.partial_box_scale` onto a partial target."""
+    return (partial_box_scale if target_kind == "partial" else box_scale)(Vs_n, Vt_n)
+
+
 def _part_term(Vs_n, Fs, W_vertices):
     """The part-affinity quadratic form of the source's parts (face components of at least
     ``MIN_PART_VERTICES`` vertices), or None when it has fewer than two."""
-    from cagekit.cage import face_components
+    from cagekit.cage import vertex_components
     from cagekit.metrics import MIN_PART_VERTICES
 
     if not len(Fs):
         return None
-    labels = np.full(len(Vs_n), -1)
-    labels[Fs.ravel()] = np.repeat(face_components(len(Vs_n), Fs), 3)
-    parts = losses.part_bases(Vs_n, labels, MIN_PART_VERTICES)
+    parts = losses.part_bases(Vs_n, vertex_components(len(Vs_n), Fs), MIN_PART_VERTICES)
     if len(parts.bases) < 2:
         return None
     return losses.part_affinity_matrix(W_vertices, parts)
@@ -384,8 +388,7 @@ class CageProblem:
         W_samples = W[n:n + s]
         W_landmarks = W[n + s:] if src_lm is not None else None
         W_shape = np.ascontiguousarray(W[:n][used])
-        scale = partial_box_scale if target_kind == "partial" else box_scale
-        box_cage = binding.cage_v * scale(Vs_n, Vt_n)
+        box_cage = binding.cage_v * _box_factors(Vs_n, Vt_n, target_kind)
         reference_cage = box_cage if reference == "aligned" else binding.cage_v
         shape_ref = losses.shape_reference(W_shape @ reference_cage, own, index, mask)
         parts_matrix = _part_term(Vs_n, Fs, W[:n]) if weights["parts"] else None
@@ -586,11 +589,11 @@ def deform(source, target, cage=None, *, method: str = "cage", symmetry: str | N
                           target_frame=ft)
     if target_kind not in TARGET_KINDS:
         raise InputError(f"target_kind must be full or partial, got {target_kind!r}")
-    scale = partial_box_scale if target_kind == "partial" else box_scale
     if method == "scale":
-        result.vertices = ft.to_world(Vs_n * scale(Vs_n, Vt_n))
+        result.vertices = ft.to_world(Vs_n * _box_factors(Vs_n, Vt_n, target_kind))
     elif method == "nricp":
-        result.vertices = ft.to_world(_nricp(Vs_n * scale(Vs_n, Vt_n), Fs, Vt_n, Ft))
+        result.vertices = ft.to_world(_nricp(Vs_n * _box_factors(Vs_n, Vt_n, target_kind),
+                                             Fs, Vt_n, Ft))
     else:
         lm = _landmarks_in_frames(landmarks, fs, ft)
         if cage is None:

@@ -37,11 +37,13 @@ __all__ = [
     "cotangent_laplacian",
     "face_areas",
     "orient_normals",
+    "vertex_rotations",
     "polar",
     "pca_normals",
     "pca_planes",
     "point_to_plane",
     "remove_duplicate_faces",
+    "uniform_laplacian",
     "vertex_neighborhoods",
 ]
 
@@ -652,3 +654,68 @@ def polar(T) -> tuple[np.ndarray, np.ndarray]:
     R = U @ (D[:, :, None] * Vt)
     S = np.swapaxes(Vt, 1, 2) @ ((D * sigma)[:, :, None] * Vt)
     return R, S
+
+
+def vertex_rotations(rest, moved, edges) -> np.ndarray:
+    """Per vertex, the rotation best turning its edges at rest into the moved ones.
+
+    The polar factor of ``sum_j (x_i - x_j)(v_i - v_j)^T`` over the vertex's edges
+    (the local step of as-rigid-as-possible, Sorkine & Alexa 2007, uniform weights).
+
+    Parameters
+    ----------
+    rest, moved : (n, 3) array_like of float
+        The vertices at rest and moved.
+    edges : (e, 2) array_like of int
+        Undirected edges, each once (:func:`cagekit.cage.unique_edges`).
+
+    Returns
+    -------
+    (n, 3, 3) float64
+        Proper rotations; the identity for a vertex on no edge.
+
+    Examples
+    --------
+    >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]])
+    >>> E = np.array([[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]])
+    >>> c, s = np.cos(0.4), np.sin(0.4)
+    >>> R0 = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+    >>> bool(np.allclose(vertex_rotations(V, 2 * V @ R0.T, E), R0))
+    True
+    """
+    V = np.asarray(rest, dtype=np.float64)
+    X = np.asarray(moved, dtype=np.float64)
+    E = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    n = len(V)
+    i = np.concatenate([E[:, 0], E[:, 1]])
+    j = np.concatenate([E[:, 1], E[:, 0]])
+    outer = np.einsum("ea,eb->eab", X[i] - X[j], V[i] - V[j]).reshape(-1, 9)
+    S = np.stack([np.bincount(i, outer[:, k], minlength=n) for k in range(9)], axis=1)
+    R = polar(S.reshape(n, 3, 3))[0]
+    R[np.bincount(i, minlength=n) == 0] = np.eye(3)
+    return R
+
+
+def uniform_laplacian(n: int, edges) -> scipy.sparse.csr_matrix:
+    """The graph Laplacian ``D - A`` of ``n`` vertices joined by ``edges`` (unit weights).
+
+    Parameters
+    ----------
+    n : int
+    edges : (e, 2) array_like of int
+        Undirected edges, each once.
+
+    Returns
+    -------
+    (n, n) scipy.sparse.csr_matrix of float64
+        Symmetric, rows summing to 0 (a vertex on no edge has an empty row).
+
+    Examples
+    --------
+    >>> uniform_laplacian(3, np.array([[0, 1], [1, 2]])).toarray().tolist()
+    [[1.0, -1.0, 0.0], [-1.0, 2.0, -1.0], [0.0, -1.0, 1.0]]
+    """
+    E = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    i, j = np.concatenate([E[:, 0], E[:, 1]]), np.concatenate([E[:, 1], E[:, 0]])
+    A = scipy.sparse.csr_matrix((np.ones(len(i)), (i, j)), shape=(n, n))
+    return (scipy.sparse.diags(np.asarray(A.sum(axis=1)).ravel()) - A).tocsr()

@@ -323,11 +323,10 @@ def part_nonaffinity(V_src: ArrayLike, F_src: ArrayLike, V_out: ArrayLike,
     >>> part_nonaffinity(V, F, V @ A + 1)["worst"] < 1e-12
     True
     """
-    from cagekit.cage import face_components
+    from cagekit.cage import vertex_components
 
     Vs, Vo, F = _paired(V_src, F_src, V_out)
-    labels = np.full(len(Vs), -1)
-    labels[F.ravel()] = np.repeat(face_components(len(Vs), F), 3)
+    labels = vertex_components(len(Vs), F)
     counts = np.bincount(labels[labels >= 0])
     parts = [np.flatnonzero(labels == c) for c in np.flatnonzero(counts >= min_vertices)]
     if not parts:

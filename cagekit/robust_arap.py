@@ -24,7 +24,7 @@ import numpy as np
 
 from cagekit.cage import unique_edges
 from cagekit.errors import InputError
-from cagekit.geometry import as_vertices, polar
+from cagekit.geometry import as_vertices, uniform_laplacian, vertex_rotations
 
 __all__ = ["RobustArap", "robust_arap", "STIFFNESS", "ITERATIONS"]
 
@@ -53,7 +53,7 @@ class RobustArap:
 
 def robust_arap(rest_v, faces, proposal, *, sigma: float, confidence=None,
                 scale: float = 1.0, stiffness: float = STIFFNESS,
-                iterations: int = ITERATIONS) -> RobustArap:
+                iterations: int = ITERATIONS, edges=None) -> RobustArap:
     """The as-rigid-as-possible deformation of ``rest_v`` nearest a proposal, robustly.
 
     Minimises ``sum_ij |(x_i - x_j) - R_i scale (v_i - v_j)|^2 + stiffness sum_i t_i |x_i -
@@ -79,6 +79,9 @@ def robust_arap(rest_v, faces, proposal, *, sigma: float, confidence=None,
         Uniform scale of the rest shape (a cage that grew by ``scale``).
     stiffness : float
     iterations : int
+    edges : (e, 2) array_like of int, optional
+        ``cagekit.cage.unique_edges(faces)``, when the caller has it (a mesh deformed
+        pose after pose need not find its edges again).
 
     Returns
     -------
@@ -112,18 +115,15 @@ def robust_arap(rest_v, faces, proposal, *, sigma: float, confidence=None,
     c0 = np.ones(n) if confidence is None else np.asarray(confidence, dtype=np.float64)
     if c0.shape != (n,) or not np.all((c0 > 0) & (c0 <= 1)):
         raise InputError("confidence must be n values in (0, 1]")
-    E = unique_edges(faces)
+    E = unique_edges(faces) if edges is None else np.asarray(edges, np.int64).reshape(-1, 2)
     if not len(E):
         return RobustArap(vertices=P.copy(), trust=c0.copy())
+    L = uniform_laplacian(n, E)
     i, j = np.concatenate([E[:, 0], E[:, 1]]), np.concatenate([E[:, 1], E[:, 0]])
-    A = sp.csr_matrix((np.ones(len(i)), (i, j)), shape=(n, n))
-    degree = np.asarray(A.sum(axis=1)).ravel()
-    L = sp.diags(degree) - A
     rest_edges = scale * (V[i] - V[j])
     X, trust = P.copy(), c0.copy()
     for _ in range(iterations):
-        R = _rotations(X[i] - X[j], rest_edges, i, n)
-        R[degree == 0] = np.eye(3)
+        R = vertex_rotations(V, X, E)
         rotated = 0.5 * np.einsum("eab,eb->ea", R[i] + R[j], rest_edges)
         b = np.stack([np.bincount(i, rotated[:, k], minlength=n) for k in range(3)], axis=1)
         K = (L + sp.diags(stiffness * trust)).tocsc()
@@ -134,10 +134,3 @@ def robust_arap(rest_v, faces, proposal, *, sigma: float, confidence=None,
         raise FloatingPointError("robust_arap produced NaN or inf positions")
     return RobustArap(vertices=X, trust=trust)
 
-
-def _rotations(moved_edges, rest_edges, owner, n) -> np.ndarray:
-    """(n, 3, 3): per vertex, the rotation best turning its edges at rest into the moved
-    ones (the polar factor of ``sum moved rest^T``)."""
-    outer = np.einsum("ea,eb->eab", moved_edges, rest_edges).reshape(-1, 9)
-    S = np.stack([np.bincount(owner, outer[:, k], minlength=n) for k in range(9)], axis=1)
-    return polar(S.reshape(n, 3, 3))[0]

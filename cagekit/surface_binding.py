@@ -35,7 +35,7 @@ import numpy as np
 
 from cagekit.cage import unique_edges
 from cagekit.errors import CageFitError, CagekitWarning
-from cagekit.geometry import as_vertices, polar
+from cagekit.geometry import as_vertices, uniform_laplacian, vertex_rotations
 
 __all__ = ["SurfaceBinding", "bind_surface", "negative_mass", "coupled_share",
            "check_coupling", "FREE_MASS", "CONFIDENCE_SCALE", "DATA_WEIGHT", "WARN_COUPLED",
@@ -105,7 +105,8 @@ class SurfaceBinding:
     coupled : float
         :func:`coupled_share` of the mean value coordinates.
     edges : (e, 2) int64
-        The mesh's edges (both directions), for the offsets' frames.
+        The mesh's edges, each once (``unique_edges(faces)`` without degenerate ones): the
+        offsets' frames and the refinement's.
     rest_base : (n, 3) float64
         ``weights @ cage_v`` of the rest cage.
     rest_cage : (k, 3) float64
@@ -148,13 +149,14 @@ class SurfaceBinding:
         scale = _cage_scale(self.rest_cage, C)
         if self.mended.any():
             idx = np.flatnonzero(self.mended)
-            R = _ring_rotations(self.rest_base, out, self.edges, idx)
+            R = vertex_rotations(self.rest_base, out, self.edges)[idx]
             out[idx] += scale * np.einsum("vij,vj->vi", R, self.offsets[idx])
         if not refine or not len(self.faces):
             return out
         return robust_arap(self.rest_vertices, self.faces, out,
                            sigma=REFINE_SIGMA * _rms_radius(C), scale=scale,
-                           confidence=np.where(self.mended, MENDED_TRUST, 1.0)).vertices
+                           confidence=np.where(self.mended, MENDED_TRUST, 1.0),
+                           edges=self.edges).vertices
 
 
 def bind_surface(vertices, faces, cage_v, cage_f, *, weights=None) -> SurfaceBinding:
@@ -194,7 +196,8 @@ def bind_surface(vertices, faces, cage_v, cage_f, *, weights=None) -> SurfaceBin
          else np.array(weights, dtype=np.float64))
     mass = negative_mass(W)
     coupled = float(np.mean(mass > 1.0))
-    edges = _edges(F)
+    edges = unique_edges(F)
+    edges = edges[edges[:, 0] != edges[:, 1]]
     mended = (mass > FREE_MASS) & (len(edges) > 0)
     if mended.any():
         W = _mend(W, mass, mended, edges)
@@ -205,13 +208,6 @@ def bind_surface(vertices, faces, cage_v, cage_f, *, weights=None) -> SurfaceBin
                           faces=F)
 
 
-def _edges(F) -> np.ndarray:
-    """(e, 2) int64: the mesh's distinct edges in both directions, sorted."""
-    E = unique_edges(F)
-    E = E[E[:, 0] != E[:, 1]]
-    return np.unique(np.concatenate([E, E[:, ::-1]]), axis=0)  # sorted by first column
-
-
 def _mend(W, mass, mended, edges) -> np.ndarray:
     """Replace the rows of ``mended`` by the minimiser of the uniform graph Dirichlet
     energy plus ``DATA_WEIGHT * c_v |w_v - W_v|^2`` (``c_v`` the confidence), the other
@@ -219,9 +215,7 @@ def _mend(W, mass, mended, edges) -> np.ndarray:
     import scipy.sparse as sp
     from scipy.sparse.linalg import splu
 
-    n = len(W)
-    A = sp.csr_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
-    L = (sp.diags(np.asarray(A.sum(axis=1)).ravel()) - A).tocsr()
+    L = uniform_laplacian(len(W), edges)
     B = np.flatnonzero(mended)
     G = np.flatnonzero(~mended)
     confidence = np.maximum(np.exp(-(mass[B] / CONFIDENCE_SCALE) ** 2), 1e-6)
@@ -230,23 +224,6 @@ def _mend(W, mass, mended, edges) -> np.ndarray:
     out = W.copy()
     out[B] = splu(K).solve(np.asarray(rhs))
     return out
-
-
-def _ring_rotations(rest, moved, edges, idx) -> np.ndarray:
-    """(len(idx), 3, 3): per vertex of ``idx``, the rotation best turning its one-ring's
-    edges in ``rest`` into those in ``moved`` (the identity for a vertex with no edge)."""
-    start = np.searchsorted(edges[:, 0], idx, side="left")
-    stop = np.searchsorted(edges[:, 0], idx, side="right")
-    counts = stop - start
-    rows = np.repeat(np.arange(len(idx)), counts)
-    take = np.concatenate([np.arange(a, b) for a, b in zip(start, stop)]) if len(idx) else []
-    take = np.asarray(take, dtype=np.int64)
-    i, j = edges[take, 0], edges[take, 1]
-    S = np.zeros((len(idx), 3, 3))
-    np.add.at(S, rows, np.einsum("ea,eb->eab", moved[j] - moved[i], rest[j] - rest[i]))
-    R, _ = polar(S)
-    R[counts == 0] = np.eye(3)
-    return R
 
 
 def _rms_radius(points) -> float:

@@ -64,24 +64,26 @@ def find(catalog: str, stem: str):
 def fit_rig(V, F, seed: int = 0):
     """The template rig fitted to a character, the best of :data:`ARM_RATIOS`: (rig,
     parameters, posed rig vertices)."""
-    fits = [_fit_rig(V, F, ratio, seed) for ratio in ARM_RATIOS]
+    from cagekit.sampling import sample_surface
+
+    samples = sample_surface(V, F, 4000, seed=seed)  # the same for every arm length
+    fits = [_fit_rig(V, samples, ratio) for ratio in ARM_RATIOS]
     for ratio, fit in zip(ARM_RATIOS, fits):
         print(f"  arm ratio {ratio}: Chamfer cost {fit[3]:.4g}")
     return min(fits, key=lambda fit: fit[3])[:3]
 
 
-def _fit_rig(V, F, arm_ratio: float, seed: int):
-    """(rig, parameters, posed rig vertices, Chamfer cost) for one arm length."""
+def _fit_rig(V, samples, arm_ratio: float):
+    """(rig, parameters, posed rig vertices, Chamfer cost) for one arm length, against
+    the character's surface samples."""
     from scipy.optimize import minimize
     from scipy.spatial import cKDTree
 
     from cagekit.datasets import characters, humanoid
-    from cagekit.sampling import sample_surface
 
     height = float(np.ptp(V[:, 1]))
     rig = humanoid.rig(humanoid.BodyShape(height=height, arm_ratio=arm_ratio),
                        resolution=0.5)
-    samples = sample_surface(V, F, 4000, seed=seed)
     tree = cKDTree(samples)
     centre = 0.5 * (V.max(axis=0) + V.min(axis=0))
 
