@@ -9,7 +9,10 @@ replace it by default), the shape terms ``L_p2f`` and ``L_normal`` (0.1 each, th
 Laplacian (0.3, or 1 with ``reference="source"``; ours: the paper gives no weight), and on
 a source of two or more parts (connected components) a part-affinity term (300, ours): each
 part's distance from an affine map of itself, so that legs stay straight and seats flat
-while the parts move, stretch and shear to the target. The
+while the parts move, stretch and shear to the target; and on a mesh the detail term (1,
+ours): the change of the source's own cotangent Laplacian coordinates from the box-aligned
+source (the dCotLap metric as a quadratic form of the cage), which keeps the fine relief
+and the sharp creases of real meshes. The
 source's bounding box is first mapped onto the target's; nlopt's L-BFGS then minimises the
 full energy with its analytic gradient (not an alternating linearised scheme: the PCA-normal
 terms are not quadratic in the cage), 60 evaluations by default, restarted once from the
@@ -56,6 +59,9 @@ TARGET_KINDS = ("full", "partial")
 #: of two or more parts (connected components of 30 vertices or more); chosen on real
 #: furniture pairs (docs/benchmarks.md, "Per-pair deformation")
 PARTS_WEIGHT = 300.0
+#: weight of the detail term (:func:`cagekit.losses.detail_loss`, the change of the
+#: source's own cotangent Laplacian coordinates); chosen on real furniture pairs
+DETAIL_WEIGHT = 1.0
 REFERENCES = ("source", "aligned")
 DEFAULT_WEIGHTS = {
     "chamfer": 1.0,
@@ -65,7 +71,15 @@ DEFAULT_WEIGHTS = {
     "symmetry": 1.0,
     "cage": 0.3,
     "parts": PARTS_WEIGHT,
+    "detail": DETAIL_WEIGHT,
 }
+#: samples of each surface (Chamfer) and vertices of the shape terms. On 39 real furniture
+#: pairs 250 shape vertices gave the figures of 500 in 0.8 of the time; 1,000 samples
+#: did too on those pairs, but doubled the error on a scaled copy of the source (1.4% of
+#: its size against 0.7%: Chamfer's sampling noise), so 2,000 are kept
+#: (docs/benchmarks.md, "Per-pair deformation")
+SAMPLES = 2000
+SHAPE_POINTS = 250
 #: the cage weight's default with ``reference="source"``
 SOURCE_REFERENCE_CAGE_WEIGHT = 1.0
 #: landmarks may lie this far outside their shape's box (unit frame: the box fills
@@ -162,6 +176,9 @@ class CageEnergy:
     parts_matrix : (k, k) float64, optional
         The part-affinity term as a quadratic form of the cage
         (:func:`cagekit.losses.part_affinity_matrix`).
+    detail_matrix : (k, k) float64, optional
+        The detail term as a quadratic form of the cage's motion from ``cage_ref``
+        (:func:`cagekit.losses.detail_matrix`).
     partial : bool
         The target is a scan seen from one side: the alignment term is
         :func:`cagekit.losses.partial_chamfer_loss`, not Chamfer.
@@ -169,7 +186,7 @@ class CageEnergy:
 
     def __init__(self, W_samples, target, W_shape, shape_ref, cage_f, cage_ref, weights,
                  symmetry=None, W_landmarks=None, landmarks=None, parts_matrix=None,
-                 partial=False):
+                 partial=False, detail_matrix=None):
         self.W_samples, self.target = W_samples, target
         self.tree = cKDTree(target) if target is not None else None
         self.W_shape, self.shape_ref = W_shape, shape_ref
@@ -181,6 +198,7 @@ class CageEnergy:
             self.partners = losses.mirror_partners(cage_ref, symmetry)
         self.W_landmarks, self.landmarks = W_landmarks, landmarks
         self.parts_matrix = parts_matrix
+        self.detail_matrix = detail_matrix
         self.partial = partial
 
     def evaluate(self, C):
@@ -219,6 +237,8 @@ class CageEnergy:
         if w["parts"] and self.parts_matrix is not None:
             QC = self.parts_matrix @ C
             add("parts", float(np.einsum("ij,ij->", C, QC)), 2.0 * QC)
+        if w["detail"] and self.detail_matrix is not None:
+            add("detail", *losses.detail_loss(C, self.detail_matrix, self.cage_ref))
         return energy, grad, values
 
     def __call__(self, C):
@@ -320,6 +340,20 @@ def _part_term(Vs_n, Fs, W_vertices):
     return losses.part_affinity_matrix(W_vertices, parts)
 
 
+def _detail_term(Vs_n, Fs, W_vertices):
+    """The detail term's quadratic form, or None for a point cloud or a mesh whose
+    cotangent Laplacian is undefined (no faces of positive area, non-finite weights)."""
+    from cagekit.geometry import surface_laplacian
+
+    if not len(Fs):
+        return None
+    try:
+        L = surface_laplacian(Vs_n, Fs)
+    except InputError:
+        return None
+    return losses.detail_matrix(W_vertices, L)
+
+
 def _samples_of(role, V, F, n, seed):
     """``surface_samples``, its errors naming the role (the command line blames the file)."""
     try:
@@ -357,7 +391,7 @@ class CageProblem:
 
     @classmethod
     def create(cls, source, target, cage, *, symmetry=None, landmarks=None, weights=None,
-               samples=2000, shape_points=500, reference="aligned", coords="mvc",
+               samples=SAMPLES, shape_points=SHAPE_POINTS, reference="aligned", coords="mvc",
                seed=0, target_kind="full") -> CageProblem:
         """Sample, bind and set up the energy of one pair (all arrays in unit frames).
 
@@ -392,9 +426,10 @@ class CageProblem:
         reference_cage = box_cage if reference == "aligned" else binding.cage_v
         shape_ref = losses.shape_reference(W_shape @ reference_cage, own, index, mask)
         parts_matrix = _part_term(Vs_n, Fs, W[:n]) if weights["parts"] else None
+        detail = _detail_term(Vs_n, Fs, W[:n]) if weights["detail"] else None
         energy = CageEnergy(W_samples, T, W_shape, shape_ref, binding.cage_f,
                             reference_cage, weights, symmetry, W_landmarks, tgt_lm,
-                            parts_matrix, target_kind == "partial")
+                            parts_matrix, target_kind == "partial", detail)
         return cls(W[:n], binding.cage_v, binding.cage_f, box_cage, energy, weights)
 
 
@@ -477,7 +512,7 @@ def _nricp(Vs_box, Fs, Vt_n, Ft):
 
 def deform(source, target, cage=None, *, method: str = "cage", symmetry: str | None = None,
            landmarks=None, weights: dict | None = None, faces: int = 200,
-           samples: int = 2000, shape_points: int = 500, max_evaluations: int = 60,
+           samples: int = SAMPLES, shape_points: int = SHAPE_POINTS, max_evaluations: int = 60,
            tolerance: float = 1e-7, reference: str = "aligned", coords: str = "mvc",
            seed: int = 0, progress=None, initial_cage=None, check: bool = True,
            target_kind: str = "full") -> DeformResult:
@@ -511,12 +546,13 @@ def deform(source, target, cage=None, *, method: str = "cage", symmetry: str | N
         their mean squared distance.
     weights : dict, optional
         Overrides of :data:`DEFAULT_WEIGHTS` (``chamfer``, ``landmarks``, ``p2f``,
-        ``normal``, ``symmetry``, ``cage``); ``result.weights`` holds those used.
+        ``normal``, ``symmetry``, ``cage``, ``parts``, ``detail``); ``result.weights``
+        holds those used.
     faces : int, default 200
         Face budget of the fitted cage when ``cage`` is None.
     samples : int, default 2000
         Samples of each surface for the Chamfer and symmetry terms.
-    shape_points : int, default 500
+    shape_points : int, default 250
         Vertices whose one-ring planes the shape terms use.
     max_evaluations : int, default 60
         Energy evaluations of L-BFGS.

@@ -43,6 +43,7 @@ __all__ = [
     "pca_planes",
     "point_to_plane",
     "remove_duplicate_faces",
+    "surface_laplacian",
     "uniform_laplacian",
     "vertex_neighborhoods",
 ]
@@ -329,6 +330,42 @@ def cotangent_laplacian(V: ArrayLike, F: ArrayLike) -> scipy.sparse.csr_matrix:
             "cotangent weights are not finite: the mesh has near-degenerate faces"
         )
     return L
+
+
+def surface_laplacian(V: ArrayLike, F: ArrayLike) -> scipy.sparse.csr_matrix:
+    """:func:`cotangent_laplacian` of a real-world mesh: duplicate faces
+    (:func:`remove_duplicate_faces`) and faces of zero area dropped first.
+
+    Parameters
+    ----------
+    V : array_like, shape (n, 3), float
+    F : array_like, shape (m, 3), int
+
+    Returns
+    -------
+    L : scipy.sparse.csr_matrix, shape (n, n), float64
+
+    Raises
+    ------
+    InputError
+        No faces, or none of positive area.
+
+    Examples
+    --------
+    >>> V = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]]
+    >>> L = surface_laplacian(V, [[0, 1, 2], [1, 3, 2], [1, 3, 2], [0, 0, 1]])
+    >>> L.toarray()[0].tolist()
+    [-1.0, 0.5, 0.5, 0.0]
+    """
+    V = as_vertices(V)
+    F = remove_duplicate_faces(as_faces(F, len(V)))
+    if len(F) == 0:
+        raise InputError("the cotangent Laplacian needs a mesh with faces, got a point cloud")
+    F = F[face_areas(V, F) > 0.0]  # zero-area faces have undefined cotangents
+    if len(F) == 0:
+        raise InputError("the cotangent Laplacian needs faces of positive area; all the "
+                         "faces have zero area")
+    return cotangent_laplacian(V, F)
 
 
 # ------------------------------------------------------------------------ neighbourhoods

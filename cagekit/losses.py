@@ -32,6 +32,8 @@ __all__ = [
     "ShapeReference",
     "cage_symmetry_loss",
     "chamfer_loss",
+    "detail_loss",
+    "detail_matrix",
     "partial_chamfer_loss",
     "landmark_loss",
     "laplacian_loss",
@@ -410,8 +412,17 @@ def _planes(X, index, mask):
     return lam, vec, centroid, D, m
 
 
+#: a neighbourhood whose two smallest spreads (covariance eigenvalues) differ by at most
+#: this fraction of its largest has no plane (its points lie on a line, or at one point):
+#: its normal is arbitrary and jumps under any motion, so :func:`shape_reference` drops it
+PLANE_GAP = 1e-3
+
+
 def shape_reference(X, own, index, mask) -> ShapeReference:
     """Rest normals and point-to-plane distances of the given neighbourhoods.
+
+    Neighbourhoods without a plane (:data:`PLANE_GAP`: points on a line, as along a
+    real mesh's thin strips and wires) are dropped; the losses average over the rest.
 
     Parameters
     ----------
@@ -437,8 +448,10 @@ def shape_reference(X, own, index, mask) -> ShapeReference:
     own = np.asarray(own, dtype=np.int64)
     index = np.asarray(index, dtype=np.int64)
     mask = np.asarray(mask, dtype=bool)
-    _, vec, centroid, _, _ = _planes(X, index, mask)
-    normals = vec[:, :, 0]
+    lam, vec, centroid, _, _ = _planes(X, index, mask)
+    keep = lam[:, 1] - lam[:, 0] > PLANE_GAP * lam[:, 2]
+    own, index, mask, centroid = own[keep], index[keep], mask[keep], centroid[keep]
+    normals = vec[keep, :, 0]
     distances = np.einsum("rk,rk->r", X[own] - centroid, normals)
     return ShapeReference(own, index, mask, normals, distances)
 
@@ -489,6 +502,9 @@ def shape_losses(X, ref: ShapeReference, p2f_weight: float = 1.0,
     >>> sorted(values), float(abs(grad).max())
     (['normal', 'p2f'], 0.0)
     """
+    if not len(ref.own):  # no neighbourhood has a plane
+        names = [name for name, w in (("normal", normal_weight), ("p2f", p2f_weight)) if w]
+        return dict.fromkeys(names, 0.0), np.zeros_like(X)
     lam, vec, centroid, D, m = _planes(X, ref.index, ref.mask)
     n_raw = vec[:, :, 0]
     cos = np.einsum("ri,ri->r", n_raw, ref.normals)
@@ -700,3 +716,71 @@ def part_affinity_matrix(W, parts: PartBases) -> np.ndarray:
         R = Wp - B @ (B.T @ Wp)
         Q += R.T @ R
     return Q / max(count, 1)
+
+
+# ------------------------------------------------------------------------------ detail
+
+
+def detail_matrix(W, L: scipy.sparse.spmatrix) -> np.ndarray:
+    """The change of a surface's Laplacian coordinates, ``L (W C - W C_ref)``, as a
+    quadratic form of the cage ``C``.
+
+    With ``L`` the source's cotangent Laplacian
+    (:func:`cagekit.geometry.surface_laplacian`), this is the dCotLap metric
+    (:func:`cagekit.metrics.dcotlap`) of the points ``W @ C`` against ``W @ C_ref``: the
+    change of each vertex's mean-curvature normal, the fine detail a cage should carry
+    and not redraw.
+
+    Parameters
+    ----------
+    W : (n, k) float64
+        Coordinates of the surface's vertices.
+    L : (n, n) sparse
+        The surface's Laplacian.
+
+    Returns
+    -------
+    (k, k) float64
+        ``Q = (L W)^T (L W) / (3 n)``: :func:`detail_loss` is ``sum(D * (Q @ D))`` with
+        ``D = C - C_ref``; each evaluation costs ``k^2``, not ``n k``.
+
+    Examples
+    --------
+    >>> import scipy.sparse
+    >>> W = np.eye(3)
+    >>> L = scipy.sparse.csr_matrix([[-2.0, 1, 1], [1, -1, 0], [1, 0, -1]])
+    >>> Q = detail_matrix(W, L)
+    >>> D = np.ones((3, 3))  # a translation
+    >>> float(np.sum(D * (Q @ D)))
+    0.0
+    """
+    LW = np.asarray(L @ np.asarray(W, dtype=np.float64))
+    return LW.T @ LW / (3.0 * len(LW))
+
+
+def detail_loss(C, Q, C_ref) -> tuple[float, np.ndarray]:
+    """:func:`detail_matrix`'s quadratic form at a cage ``C``, with ``dL/dC``.
+
+    Parameters
+    ----------
+    C, C_ref : (k, 3) float64
+        The cage and the reference cage.
+    Q : (k, k) float64
+        From :func:`detail_matrix`.
+
+    Returns
+    -------
+    value : float
+        ``mean over n x 3 entries of (L W (C - C_ref))^2``.
+    grad : (k, 3) float64
+        ``2 Q (C - C_ref)``.
+
+    Examples
+    --------
+    >>> Q = np.eye(2)
+    >>> detail_loss(np.array([[1.0, 0, 0], [0, 0, 0]]), Q, np.zeros((2, 3)))[0]
+    1.0
+    """
+    D = C - C_ref
+    QD = Q @ D
+    return _finite(float(np.einsum("ij,ij->", D, QD)), "detail loss"), 2.0 * QD

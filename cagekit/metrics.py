@@ -36,9 +36,9 @@ from cagekit.geometry import (
     as_faces,
     as_shape,
     as_vertices,
-    cotangent_laplacian,
     face_areas,
     remove_duplicate_faces,
+    surface_laplacian,
 )
 from cagekit.sampling import surface_samples
 
@@ -183,14 +183,10 @@ def dcotlap(V_src: ArrayLike, F_src: ArrayLike, V_out: ArrayLike) -> float:
             f"V_out has {len(V_out)} vertices but the source has {len(V_src)}; "
             "the deformed shape must keep the source's vertices"
         )
-    F = remove_duplicate_faces(as_faces(F_src, len(V_src), "F_src"))
+    F = as_faces(F_src, len(V_src), "F_src")
     if len(F) == 0:
         raise InputError("dCotLap needs the source's faces; the source has none")
-    F = F[face_areas(V_src, F) > 0.0]  # zero-area faces have undefined cotangents
-    if len(F) == 0:
-        raise InputError("dCotLap needs faces of positive area; all the source's faces "
-                         "have zero area")
-    L = cotangent_laplacian(V_src, F)
+    L = surface_laplacian(V_src, F)
     return float(np.mean(np.square(L @ (V_out - V_src))))
 
 

@@ -31,7 +31,7 @@ def test_deform_writes_result_cages_preview_and_json(pair):
     assert result.returncode == 0, result.stderr
     report = json.loads(result.stdout)
     assert report["method"] == "cage" and report["cage_faces"] <= 80
-    assert {"chamfer", "p2f", "normal", "symmetry", "cage"} == set(report["losses"])
+    assert {"chamfer", "p2f", "normal", "symmetry", "cage", "detail"} == set(report["losses"])
     assert report["energy"] <= report["iterations"] * 1e9  # a number, not null
     assert report["cd"] > 0 and report["dcotlap"] >= 0
     assert preview.stat().st_size > 10_000

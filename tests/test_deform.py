@@ -46,13 +46,17 @@ def test_energy_gradient_matches_finite_differences(blob, blob_cage):
     from cagekit.losses import part_affinity_matrix, part_bases
 
     halves = part_bases(V, (V[:, 0] > 0).astype(int))  # two "parts"
+    from cagekit.geometry import cotangent_laplacian
+    from cagekit.losses import detail_matrix
+
     energy = CageEnergy(b.weights, target, b.weights, ref, cage_f, cage_v, weights,
                         symmetry="x", W_landmarks=b.weights[:5], landmarks=target[:5],
-                        parts_matrix=part_affinity_matrix(b.weights, halves))
+                        parts_matrix=part_affinity_matrix(b.weights, halves),
+                        detail_matrix=detail_matrix(b.weights, cotangent_laplacian(V, F)))
     C = cage_v + 0.02 * rng.standard_normal(cage_v.shape)
     value, grad, values = energy.evaluate(C)
     assert set(values) == {"chamfer", "landmarks", "p2f", "normal", "symmetry", "cage",
-                           "parts"}
+                           "parts", "detail"}
     assert value == pytest.approx(sum(weights[k] * v for k, v in values.items()))
     h = 1e-6
     for _ in range(12):
@@ -145,7 +149,7 @@ def test_result_fields_and_frames(blob, blob_cage):
                                atol=1e-9 * 10)
     assert 90.0 < result.vertices.mean(axis=0).min()  # in the target's units
     assert result.seconds > 0 and result.method == "cage"
-    assert set(result.losses) == {"chamfer", "p2f", "normal", "cage"}
+    assert set(result.losses) == {"chamfer", "p2f", "normal", "cage", "detail"}
 
 
 def test_initial_cage_sets_where_the_optimiser_starts(blob, blob_cage):
@@ -183,6 +187,7 @@ def test_point_cloud_target_and_source(blob, blob_cage):
     moved = cagekit.deform(points, cloud)
     assert moved.vertices.shape == (1500, 3) and len(moved.faces) == 0
     assert "normal" in moved.losses  # shape terms on k-NN neighbourhoods
+    assert "detail" not in moved.losses  # no faces, no cotangent Laplacian
 
 
 def test_partial_point_cloud_target(blob, blob_cage):
@@ -330,3 +335,20 @@ def test_a_partial_target_is_reached_without_squashing_the_unseen_side():
     assert partial < 0.5 * as_full
     with pytest.raises(InputError, match="target_kind"):
         cagekit.deform(source, (scan, None), target_kind="half")
+
+
+def test_the_detail_term_lowers_dcotlap(blob, blob_cage):
+    # the source's own cotangent Laplacian charged (default weight 1, or 10) against none:
+    # dCotLap falls while the target is still reached (CD well below box scaling's)
+    V, F = blob
+    Vt = V.copy()
+    Vt[Vt[:, 1] > 0] *= [1.25, 1.0, 1.25]  # the top half swells
+    figures = {}
+    for weight in (0.0, 1.0, 10.0):
+        r = cagekit.deform(blob, (Vt, F), cage=blob_cage, weights={"detail": weight})
+        figures[weight] = evaluate(blob, (Vt, F), (r.vertices, F))
+        assert ("detail" in r.losses) == (weight > 0)
+    scale = cagekit.deform(blob, (Vt, F), method="scale")
+    cd_scale = evaluate(blob, (Vt, F), (scale.vertices, F))["cd"]
+    assert figures[10.0]["dcotlap"] < figures[1.0]["dcotlap"] < figures[0.0]["dcotlap"]
+    assert figures[10.0]["cd"] < 0.7 * cd_scale

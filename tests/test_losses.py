@@ -17,6 +17,8 @@ from cagekit.losses import (
     ShapeReference,
     cage_symmetry_loss,
     chamfer_loss,
+    detail_loss,
+    detail_matrix,
     landmark_loss,
     laplacian_loss,
     mirror,
@@ -32,7 +34,7 @@ from cagekit.losses import (
     shape_reference,
     symmetry_loss,
 )
-from cagekit.metrics import chamfer_distance
+from cagekit.metrics import chamfer_distance, dcotlap
 
 H = 1e-6  # finite-difference step
 RTOL = 1e-6  # allowed error, relative to max |grad|
@@ -399,9 +401,10 @@ def test_p2f_known_value_and_bump_exaggeration():
     assert bumps[0] == 0.0 and np.all(np.diff(bumps) > 0)
     # past that the PCA plane turns vertical (the fan is taller than wide): d = 0, so
     # the 0.64 at f = 2 is (0 - 0.8)^2, not (1.6 - 0.8)^2
-    tall = shape_reference(X * [1, 1, 2], [0], [[0, 1, 2, 3, 4]], [[True] * 5])
-    assert abs(tall.normals[0, 2]) < 1e-12 and tall.distances[0] == pytest.approx(0.0)
     assert normal_loss(X * [1, 1, 2], ref)[0] == pytest.approx(1.0)
+    # as a rest shape the tall fan has no plane (its x and y spreads are equal): dropped
+    tall = shape_reference(X * [1, 1, 2], [0], [[0, 1, 2, 3, 4]], [[True] * 5])
+    assert len(tall.own) == 0
 
 
 def test_p2f_grows_with_a_bump_on_the_sphere():
@@ -462,7 +465,7 @@ def test_degenerate_neighbourhoods_are_finite(moved):
 
 @pytest.mark.filterwarnings("error")
 def test_degenerate_rows_do_not_spoil_the_others():
-    # the gradient of healthy rows is unchanged by degenerate rows mixed in
+    # healthy rows are unchanged by degenerate rows mixed in
     X0, F = rest_shape(subdivisions=1)
     nb = vertex_neighborhoods(X0, F)
     m = nb.index.shape[1]
@@ -478,11 +481,10 @@ def test_degenerate_rows_do_not_spoil_the_others():
     X = deformed(X0)
     v_h, g_h = shape_losses(X, healthy)
     v_m, g_m = shape_losses(X, mixed)
-    assert np.isfinite(g_m).all()
-    # the single-point row has d = 0 always and a normal that stays n0 (eigh of a zero
-    # matrix): it adds nothing but dilutes the means by 5/6
-    assert v_m["p2f"] == pytest.approx(v_h["p2f"] * 5 / 6, rel=1e-12)
-    np.testing.assert_allclose(g_m, g_h * 5 / 6, atol=1e-12 * np.abs(g_h).max())
+    # the single-point row has no plane: dropped, it changes nothing
+    assert mixed.own.tolist() == list(range(5))
+    assert v_m == pytest.approx(v_h, rel=1e-12)
+    np.testing.assert_allclose(g_m, g_h, atol=1e-12 * np.abs(g_h).max())
 
 
 # ---------------------------------------------------------------------- non-finite input
@@ -641,3 +643,39 @@ def test_partial_chamfer_gradient_and_full_weight_is_chamfer(seed, weight):
     full, grad = partial_chamfer_loss(P, Q, source_weight=1.0)
     assert full == pytest.approx(chamfer_loss(P, Q)[0])
     np.testing.assert_allclose(grad, chamfer_loss(P, Q)[1])
+
+
+# --------------------------------------------------------------------------- detail
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=SEEDS)
+def test_detail_loss_gradient_matches_finite_differences(seed):
+    rng = np.random.default_rng(seed)
+    Q = detail_matrix(rng.random((30, 6)), cotangent_laplacian(*icosphere(1))[:30, :30])
+    C_ref = rng.normal(size=(6, 3))
+    assert_grad(lambda C: detail_loss(C, Q, C_ref), C_ref + 0.3 * rng.normal(size=(6, 3)))
+
+
+def test_detail_loss_is_dcotlap_of_the_deformed_points():
+    # the points W C against W C_ref: the quadratic form is the metric itself
+    V, F = icosphere(2)
+    rng = np.random.default_rng(0)
+    W = rng.random((len(V), 8))
+    W /= W.sum(axis=1, keepdims=True)
+    C_ref = np.linalg.lstsq(W, V, rcond=None)[0]
+    C = C_ref + 0.05 * rng.normal(size=C_ref.shape)
+    Q = detail_matrix(W, cotangent_laplacian(W @ C_ref, F))
+    value, _ = detail_loss(C, Q, C_ref)
+    assert value == pytest.approx(dcotlap(W @ C_ref, F, W @ C), rel=1e-9)
+    assert detail_loss(C_ref + [1.0, 2.0, 3.0], Q, C_ref)[0] < 1e-12 * value  # translation
+
+
+def test_neighbourhoods_without_a_plane_are_dropped():
+    # 4 points on a line have no plane: their normal is arbitrary, so they are left out
+    X = np.array([[0.0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0], [0, 1, 0], [1, 1, 0]])
+    ref = shape_reference(X, [0, 1], [[0, 1, 2, 3], [0, 1, 4, 5]], [[True] * 4] * 2)
+    assert ref.own.tolist() == [1]
+    line = shape_reference(X, [0], [[0, 1, 2, 3]], [[True] * 4])
+    values, grad = shape_losses(X + 1e-7, line)
+    assert values == {"p2f": 0.0, "normal": 0.0} and not grad.any()

@@ -124,7 +124,8 @@ def _load_landmark_pair(src_path, tgt_path):
               metavar="TERM=VALUE",
               help="Energy weight (repeatable): chamfer, landmarks, p2f, normal, "
                    "symmetry, cage, parts (each part of a multi-part source kept affine; "
-                   "parts=0 lets parts bend).")
+                   "parts=0 lets parts bend), detail (the change of the source's "
+                   "cotangent Laplacian).")
 @click.option("--reference", type=click.Choice(["aligned", "source"]), default="aligned",
               show_default=True,
               help="Shape and cage terms compare with the box-aligned source (stretch "
