@@ -246,12 +246,21 @@ def _repair(cv, cf, samples, margin, rounds):
     that covers it, to first order); each vertex takes the largest request. Returns the
     repaired vertices, or None when ``rounds`` rounds did not suffice or the repair
     diverges.
+
+    Only samples that may have come within ``margin`` are measured again each round: a
+    round moves the cage surface by at most its largest push ``p``, so a sample's signed
+    distance grows by at most ``p`` (it cannot cross the moving surface while farther
+    from it than that); a sample whose last distance plus the pushes since stays below
+    ``-margin`` is still inside by ``margin``.
     """
     import igl
 
+    known = np.full(len(samples), np.inf)  # last measured signed distance + pushes since
     first = None
     for round_ in range(rounds):
-        dist, face, closest = _signed_distance(samples, cv, cf)
+        near = np.flatnonzero(known > -margin)
+        dist, face, closest = _signed_distance(samples[near], cv, cf)
+        known[near] = dist
         bad = np.flatnonzero(dist > -margin)
         if len(bad) == 0:
             return cv
@@ -274,6 +283,7 @@ def _repair(cv, cf, samples, margin, rounds):
         for k in range(3):
             np.maximum.at(push, tri[:, k], need * bary[:, k] / along[:, k])
         cv = cv + push[:, None] * normals
+        known += push.max()
     return None
 
 

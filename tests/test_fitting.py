@@ -216,3 +216,21 @@ def test_template_below_its_face_count_is_refused():
     v, f = box_cage(2)
     with pytest.raises(InputError, match="80 faces"):
         fit_cage(v, f, faces=79, method="template")
+
+
+def test_repair_leaves_every_sample_margin_inside():
+    # a cage too small for its samples is pushed out over several rounds; the repair
+    # measures again only samples that may have come near the cage, so every sample is
+    # checked here with a full signed-distance pass
+    from cagekit.fitting import _repair, _signed_distance
+
+    sphere = trimesh.creation.icosphere(subdivisions=1)
+    cv, cf = np.asarray(sphere.vertices) * 0.3, np.asarray(sphere.faces, dtype=np.int64)
+    rng = np.random.default_rng(0)
+    directions = rng.normal(size=(4000, 3))
+    samples = 0.31 * directions / np.linalg.norm(directions, axis=1, keepdims=True)
+    samples *= rng.uniform(0.2, 1.0, (4000, 1)) ** 0.1  # most near the surface
+    assert (_signed_distance(samples, cv, cf)[0] > -1e-3).sum() > 100
+    repaired = _repair(cv, cf, samples, margin=1e-3, rounds=30)
+    assert repaired is not None
+    assert _signed_distance(samples, repaired, cf)[0].max() <= -1e-3
