@@ -9,7 +9,7 @@ STAMP := $(VENV)/.installed
 
 $(STAMP): setup.cfg pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/pip install -q -e '.[dev,learn]'
+	$(BIN)/pip install -q -e '.[dev,learn,cluster]'
 	touch $(STAMP)
 
 venv: $(STAMP)

@@ -33,7 +33,8 @@ from cagekit.geometry import as_shape
 from cagekit.sampling import surface_samples
 from cagekit_learn.networks import NeuralCages
 
-__all__ = ["predict", "predict_fixed_source", "predict_cages", "deform_with_model"]
+__all__ = ["ModelDeformer", "predict", "predict_fixed_source", "predict_cages",
+           "deform_with_model"]
 
 #: what ``refine_options`` may hold: the problem's options and the solver's
 _SOLVE_OPTIONS = ("max_evaluations", "tolerance", "progress")
@@ -224,3 +225,40 @@ def deform_with_model(model: NeuralCages, source, target, *, points: int | None 
         raise FloatingPointError("the model produced NaN or inf positions")
     result.seconds = time.perf_counter() - start
     return result
+
+
+class ModelDeformer:
+    """:func:`deform_with_model` as a picklable callable, for batches run by workers.
+
+    The checkpoint is loaded once per process, on first use (a pickled copy carries only
+    the path), so that a process pool or a cluster's workers each read it once.
+
+    Parameters
+    ----------
+    path : str
+        A checkpoint or run folder (:func:`cagekit_learn.train.load_model`).
+    refine : bool, default False
+        As :func:`deform_with_model`.
+
+    Examples
+    --------
+    >>> deformer = ModelDeformer("runs/chairs", refine=True)  # doctest: +SKIP
+    >>> result = deformer(source, target, seed=0)  # doctest: +SKIP
+    """
+
+    def __init__(self, path: str, refine: bool = False):
+        self.path, self.refine = path, bool(refine)
+        self._model = None
+
+    def __getstate__(self):
+        return {"path": self.path, "refine": self.refine, "_model": None}
+
+    def __call__(self, source, target, seed: int = 0) -> DeformResult:
+        if self._model is None:
+            from cagekit_learn.train import load_model
+
+            model, payload = load_model(self.path)
+            self._model = (model, int(payload.get("config", {}).get("points", 1024)))
+        model, points = self._model
+        return deform_with_model(model, source, target, points=points, seed=seed,
+                                 refine=self.refine)

@@ -10,7 +10,17 @@ from __future__ import annotations
 import click
 
 from cagekit import __version__
-from cagekit.cli import apply, deform, evaluate, fit_cage, render, synth, train, transfer
+from cagekit.cli import (
+    amplify,
+    apply,
+    deform,
+    evaluate,
+    fit_cage,
+    render,
+    synth,
+    train,
+    transfer,
+)
 from cagekit.cli.common import Group
 
 __all__ = ["main"]
@@ -30,5 +40,5 @@ def main(debug: bool) -> None:
 
 for _module, _name in ((apply, "apply"), (evaluate, "eval_"), (render, "render"),
                        (fit_cage, "fit_cage"), (synth, "synth"), (deform, "deform"),
-                       (train, "train"), (transfer, "transfer")):
+                       (train, "train"), (transfer, "transfer"), (amplify, "amplify")):
     main.add_command(getattr(_module, _name))

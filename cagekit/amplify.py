@@ -1,0 +1,581 @@
+"""Stock amplification: many variations of a collection, each source deformed onto a target.
+
+The paper's first application. Pairs are drawn (seeded), listed, or all taken; each item
+deforms its source to its target's proportions (:func:`cagekit.deform`) and is scored
+(:func:`cagekit.evaluate`), and a plausibility filter marks the implausible ones
+``rejected``. Items run on a process pool or on any ``concurrent.futures`` executor (a
+cluster's); each is a pure function of (source, target, method, seed), so the results do
+not depend on where or in which order they ran. A source's cage is fitted once and
+reused by its later pairs. The manifest (CSV and JSON) is rewritten atomically after every
+finished item, so a killed batch loses only the items in flight, and a rerun redoes only
+items that are missing or whose inputs changed (content hashes). docs/architecture.md has
+the data path.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import csv
+import io
+import json
+import multiprocessing
+import os
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from cagekit.collection import Shape, find_shapes, load_shape_of
+from cagekit.errors import InputError
+from cagekit.files import atomic_output, one_line, read_text
+
+__all__ = ["COLUMNS", "MAX_CD", "MAX_NONAFFINITY", "METHODS", "Item", "amplify",
+           "contact_sheet", "deform_item", "plan_pairs"]
+
+METHODS = ("cage", "scale", "model")
+#: a variation of a source of two or more parts whose worst part is farther than this
+#: from an affine map of itself (:func:`cagekit.metrics.part_nonaffinity`, fraction of the
+#: part's size) is rejected; a one-part source (an animal, a vase) is meant to bend
+MAX_NONAFFINITY = 0.02
+#: a variation whose Chamfer distance to its target (target's unit frame, as
+#: :func:`cagekit.evaluate`) exceeds this is rejected: it did not take the target's shape
+MAX_CD = 0.05
+#: the manifest's columns, in order
+COLUMNS = ("source", "target", "output", "method", "seed", "status", "cd", "dcotlap",
+           "parts", "part_nonaffinity_median", "part_nonaffinity_worst",
+           "planarity_p95_deg", "seconds", "cage_seconds", "error", "source_hash", "target_hash")
+_FIGURES = ("cd", "dcotlap", "parts", "part_nonaffinity_median", "part_nonaffinity_worst",
+            "planarity_p95_deg")
+#: the cage ``deform`` fits for a source (as :func:`cagekit.deform` does by default)
+CAGE_FACES = 200
+
+
+@dataclass(frozen=True)
+class Item:
+    """One variation to make: ``source`` deformed onto ``target``."""
+
+    source: Shape
+    target: Shape
+    output: str  # file name under variations/ (or rejected/)
+
+
+# --------------------------------------------------------------------------- planning
+
+
+def _allowed(shapes, category_by):
+    if category_by not in (None, "folder"):
+        raise InputError(f"category_by must be None or 'folder', got {category_by!r}")
+    groups = {}
+    for i, shape in enumerate(shapes):
+        groups.setdefault(shape.category if category_by else "", []).append(i)
+    return [g for g in groups.values() if len(g) >= 2]
+
+
+def _read_pairs(path, by_name):
+    rows = list(csv.reader(io.StringIO(read_text(path))))
+    rows = [r for r in rows if r and any(cell.strip() for cell in r)]
+    if rows and [c.strip().lower() for c in rows[0][:2]] == ["source", "target"]:
+        rows = rows[1:]
+    pairs, unknown = [], []
+    for number, row in enumerate(rows, 1):
+        if len(row) < 2:
+            raise InputError(f"row {number}: expected 'source,target'", path)
+        names = [row[0].strip(), row[1].strip()]
+        unknown += [n for n in names if n not in by_name]
+        pairs.append(tuple(names))
+    if unknown:
+        shown = ", ".join(sorted(set(unknown))[:5])
+        raise InputError(f"{len(set(unknown))} name(s) not in the collection: {shown}"
+                         + (" ..." if len(set(unknown)) > 5 else ""), path)
+    if not pairs:
+        raise InputError("no pairs listed", path)
+    return [(by_name[a], by_name[b]) for a, b in pairs]
+
+
+def plan_pairs(shapes, *, variations=None, pairs=None, category_by=None,
+               seed: int = 0) -> list[tuple[Shape, Shape]]:
+    """The (source, target) pairs of a batch, in manifest order.
+
+    Parameters
+    ----------
+    shapes : list of Shape
+        From :func:`cagekit.collection.find_shapes`.
+    variations : int, optional
+        Draw this many distinct ordered pairs, uniformly, with ``seed``; a shape is never
+        paired with itself.
+    pairs : str, optional
+        ``"all"`` (every ordered pair) or a CSV file of ``source,target`` names (a header
+        line ``source,target`` is optional).
+    category_by : {None, "folder"}
+        ``"folder"``: pairs only within a category (:attr:`Shape.category`).
+    seed : int, default 0
+
+    Returns
+    -------
+    list of (Shape, Shape)
+
+    Raises
+    ------
+    InputError
+        Neither or both of ``variations`` and ``pairs``; more variations than pairs
+        exist; names in the pairs file not in the collection (named).
+
+    Examples
+    --------
+    >>> from cagekit.collection import find_shapes
+    >>> shapes = find_shapes("synthetic:vases:3")
+    >>> len(plan_pairs(shapes, pairs="all")), len(plan_pairs(shapes, variations=4))
+    (6, 4)
+    """
+    if (variations is None) == (pairs is None):
+        raise InputError("give either a number of variations or pairs ('all' or a CSV file)")
+    by_name = {s.name: s for s in shapes}
+    groups = _allowed(shapes, category_by)
+    if pairs is not None and pairs != "all":
+        chosen = _read_pairs(pairs, by_name)
+        if category_by:
+            mixed = [f"{a.name},{b.name}" for a, b in chosen if a.category != b.category]
+            if mixed:
+                raise InputError(f"{len(mixed)} pair(s) cross categories: {mixed[0]}", pairs)
+        return chosen
+    sizes = np.array([len(g) * (len(g) - 1) for g in groups], dtype=np.int64)
+    total = int(sizes.sum())
+    if pairs == "all":
+        picks = np.arange(total)
+    else:
+        count = int(variations)
+        if count < 1 or count > total:
+            raise InputError(f"variations must be between 1 and {total} (the distinct "
+                             f"ordered pairs of this collection), got {variations}")
+        picks = np.random.default_rng(seed).choice(total, size=count, replace=False)
+    starts = np.concatenate([[0], np.cumsum(sizes)])
+    out = []
+    for k in picks:
+        g = int(np.searchsorted(starts, k, side="right")) - 1
+        members, local = groups[g], int(k - starts[g])
+        i, j = divmod(local, len(members) - 1)
+        j += j >= i
+        out.append((shapes[members[i]], shapes[members[j]]))
+    return out
+
+
+def _items(pairs) -> list[Item]:
+    """Items with unique output names (``<source>__<target>.obj``, ``-2`` on collisions)."""
+    seen, items = set(), []
+    for source, target in pairs:
+        base = f"{source.stem}__{target.stem}"
+        name, k = f"{base}.obj", 2
+        while name in seen:
+            name, k = f"{base}-{k}.obj", k + 1
+        seen.add(name)
+        items.append(Item(source, target, name))
+    return items
+
+
+# ------------------------------------------------------------------------------ one item
+
+
+def deform_item(source: str, target: str, method: str = "cage", seed: int = 0, cage=None,
+                deformer=None) -> dict:
+    """Make one variation: a pure function of its arguments, run by a worker.
+
+    Parameters
+    ----------
+    source, target : str
+        :attr:`Shape.location` of each.
+    method : {"cage", "scale", "model"}
+    seed : int
+    cage : (cage_v (k, 3) float64, cage_f (c, 3) int64), optional
+        The source's cage in its own frame, when known (``cage``); else it is fitted here
+        exactly as :func:`cagekit.deform` fits one, and returned for reuse.
+    deformer : callable, optional
+        For ``model``: ``deformer(source, target, seed) -> DeformResult``
+        (``cagekit_learn.inference.ModelDeformer``).
+
+    Returns
+    -------
+    dict
+        ``status`` ("ok" or "failed"), ``error`` (one line or ""), and for "ok" the
+        ``vertices`` (n, 3) float64 and ``faces`` of the variation, the figures of
+        :func:`cagekit.evaluate` (``cd``, ``dcotlap``, part non-affinity, planarity), the
+        ``cage`` used (or None), ``seconds`` (the whole item) and ``cage_seconds`` (the fit,
+        0 when the cage was given).
+    """
+    from cagekit.deformation import deform
+    from cagekit.metrics import evaluate
+
+    start = time.perf_counter()
+    out = {"status": "failed", "error": "", "cage": None, "cage_seconds": 0.0}
+    try:
+        Vs, Fs = _loaded("source", source)
+        Vt, Ft = _loaded("target", target)
+        if method == "model":
+            result = deformer((Vs, Fs), (Vt, Ft), seed)
+        elif method == "scale":
+            result = deform((Vs, Fs), (Vt, Ft), method="scale")
+        elif method == "cage":
+            if cage is None:
+                t0 = time.perf_counter()
+                cage = _fit(Vs, Fs, seed)
+                out["cage_seconds"] = time.perf_counter() - t0
+            result = deform((Vs, Fs), (Vt, Ft), cage=cage, seed=seed, check=False)
+            out["cage"] = cage
+        else:
+            raise InputError(f"unknown method {method!r}; available: {', '.join(METHODS)}")
+        figures = evaluate((Vs, Fs), (Vt, Ft), (result.vertices, Fs), seed=seed,
+                           frames=(result.source_frame, result.target_frame))
+    except Exception as exc:  # noqa: BLE001 - one item fails, never the batch
+        out["error"] = one_line(exc)
+        out["seconds"] = time.perf_counter() - start
+        return out
+    out.update({name: figures[name] for name in _FIGURES})
+    out.update(status="ok", vertices=result.vertices, faces=Fs,
+               seconds=time.perf_counter() - start)
+    return out
+
+
+def _loaded(role, location):
+    try:
+        return load_shape_of(location)
+    except InputError as exc:
+        raise InputError(f"{role} {exc}") from None
+
+
+def _fit(Vs, Fs, seed):
+    """The cage :func:`cagekit.deform` would fit, in the source's own frame."""
+    from cagekit.fitting import fit_cage
+    from cagekit.frame import Frame
+
+    frame = Frame.of(Vs, name="the source")
+    cage_n, cage_f = fit_cage(frame.to_unit(Vs), Fs, faces=CAGE_FACES, seed=seed,
+                              samples=5000)
+    return frame.to_world(cage_n), cage_f
+
+
+# ---------------------------------------------------------------------------- manifest
+
+
+class _Manifest:
+    """The batch's rows, rewritten atomically (CSV and JSON) after every change."""
+
+    def __init__(self, folder):
+        self.folder = folder
+        self.rows: dict[tuple[str, str], dict] = {}
+        self.cages: dict[str, dict] = {}
+        path = os.path.join(folder, "manifest.json")
+        if os.path.exists(path):
+            try:
+                data = json.loads(read_text(path))
+                self.rows = {(r["source"], r["target"]): r for r in data["items"]}
+                self.cages = dict(data.get("cages", {}))
+            except (ValueError, KeyError, TypeError):
+                raise InputError("the manifest of an earlier run cannot be read; move it "
+                                 "away to start afresh", path) from None
+
+    def save(self, order):
+        rows = [self.rows[key] for key in order if key in self.rows]
+        with atomic_output(os.path.join(self.folder, "manifest.json")) as tmp:
+            with open(tmp, "w", encoding="utf-8") as fh:
+                json.dump({"items": rows, "cages": self.cages}, fh, indent=1)
+        with atomic_output(os.path.join(self.folder, "manifest.csv")) as tmp:
+            with open(tmp, "w", encoding="utf-8", newline="") as fh:
+                writer = csv.DictWriter(fh, fieldnames=COLUMNS, extrasaction="ignore")
+                writer.writeheader()
+                writer.writerows(rows)
+
+
+def _status(row, max_nonaffinity, max_cd) -> str:
+    if row["status"] == "failed":
+        return "failed"
+    too_bent = row["parts"] >= 2 and row["part_nonaffinity_worst"] > max_nonaffinity
+    return "rejected" if too_bent or row["cd"] > max_cd else "ok"
+
+
+def _done(row, item, method, seed, folder, drop_rejected) -> bool:
+    """An earlier run's row that this run can keep as it is."""
+    same = (row.get("method") == method and row.get("seed") == seed
+            and row.get("source_hash") == item.source.fingerprint
+            and row.get("target_hash") == item.target.fingerprint
+            and row.get("output") == item.output)
+    if not same:
+        return False
+    if row["status"] == "failed":
+        return True
+    return os.path.exists(os.path.join(folder, "variations", item.output)) or (
+        os.path.exists(os.path.join(folder, "rejected", item.output)) or drop_rejected)
+
+
+# ---------------------------------------------------------------------------- the batch
+
+
+def amplify(collection: str, out_dir: str, *, variations: int | None = None,
+            pairs: str | None = None, method: str = "cage", deformer=None,
+            category_by: str | None = None, seed: int = 0, workers: int | None = None,
+            executor: cf.Executor | None = None, max_nonaffinity: float = MAX_NONAFFINITY,
+            max_cd: float = MAX_CD, drop_rejected: bool = False,
+            contact_sheet_path: str | None = None, progress=None) -> list[dict]:
+    """Make variations of a collection; resume an earlier run in the same folder.
+
+    Parameters
+    ----------
+    collection : str
+        A folder of meshes (recursive) or ``synthetic:<family>:<count>``
+        (:func:`cagekit.collection.find_shapes`).
+    out_dir : str
+        Output folder: ``variations/<source>__<target>.obj``, ``rejected/`` (the rejected
+        ones, unless ``drop_rejected``), ``cages/<source>.obj`` (each source's cage,
+        fitted once), ``manifest.csv`` and ``manifest.json`` (one row per item, columns
+        :data:`COLUMNS`; the JSON also lists the cages).
+    variations, pairs, category_by, seed
+        As :func:`plan_pairs` takes them; ``seed`` also seeds each item.
+    method : {"cage", "scale", "model"}
+        ``model`` needs ``deformer`` (see :func:`deform_item`).
+    workers : int, optional
+        Local processes (default: every core); 1 runs the items in this process.
+        Ignored when ``executor`` is given.
+    executor : concurrent.futures.Executor, optional
+        Where the items run instead (a cluster's executor, for example
+        ``dask.distributed.Client.get_executor()``); it must reach the collection's files
+        at the same paths.
+    max_nonaffinity, max_cd : float
+        The plausibility filter (:data:`MAX_NONAFFINITY`, :data:`MAX_CD`).
+    drop_rejected : bool, default False
+        Do not keep the rejected variations' meshes.
+    contact_sheet_path : str, optional
+        A PNG of the variations (:func:`contact_sheet`).
+    progress : callable, optional
+        ``progress(done, total)`` after each item.
+
+    Returns
+    -------
+    list of dict
+        The manifest's rows, in plan order.
+
+    Raises
+    ------
+    InputError
+        Bad options, an unreadable collection, an unknown name in the pairs file.
+    KeyboardInterrupt
+        Re-raised after the manifest is saved (items in flight are dropped).
+
+    Examples
+    --------
+    >>> rows = amplify("synthetic:vases:3", "out/vases", variations=2, workers=1)
+    ... # doctest: +SKIP
+    >>> [r["status"] for r in rows]  # doctest: +SKIP
+    ['ok', 'ok']
+    """
+    if method not in METHODS:
+        raise InputError(f"unknown method {method!r}; available: {', '.join(METHODS)}")
+    if method == "model" and deformer is None:
+        raise InputError("method model needs a trained model (deformer)")
+    items = _items(plan_pairs(find_shapes(collection), variations=variations, pairs=pairs,
+                              category_by=category_by, seed=seed))
+    for sub in ("variations", "cages") + (() if drop_rejected else ("rejected",)):
+        os.makedirs(os.path.join(out_dir, sub), exist_ok=True)
+    manifest = _Manifest(out_dir)
+    order = [(it.source.name, it.target.name) for it in items]
+    kept, todo = {}, []
+    for key, item in zip(order, items):
+        row = manifest.rows.get(key)
+        if row is not None and _done(row, item, method, seed, out_dir, drop_rejected):
+            kept[key] = row
+        else:
+            todo.append(item)
+    manifest.rows = kept  # rows of other pairs, or of changed inputs, are dropped
+    for row in kept.values():  # a changed filter applies to kept rows too
+        _refile(row, _status(row, max_nonaffinity, max_cd), out_dir, drop_rejected)
+    manifest.save(order)
+    runner = _Runner(items, todo, manifest, order, out_dir, method, seed, deformer,
+                     max_nonaffinity, max_cd, drop_rejected, progress)
+    runner.run(executor, workers)
+    rows = [manifest.rows[key] for key in order]
+    if contact_sheet_path:
+        contact_sheet(rows, items, out_dir, contact_sheet_path)
+    return rows
+
+
+def _refile(row, status, folder, drop_rejected):
+    """Put a kept variation where its (possibly new) status says: variations/, rejected/,
+    or nowhere (rejected with ``drop_rejected``)."""
+    if row["status"] == "failed":
+        return
+    row["status"] = status
+    here = [os.path.join(folder, sub, row["output"]) for sub in ("variations", "rejected")]
+    found = next((path for path in here if os.path.exists(path)), None)
+    if status == "rejected" and drop_rejected:
+        if found is not None:
+            os.remove(found)
+        return
+    wanted = here[0] if status == "ok" else here[1]
+    if found is not None and found != wanted:
+        os.replace(found, wanted)
+
+
+def _ignore_interrupts():
+    """Pool workers leave Ctrl-C to the main process, which stops the batch."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+class _Runner:
+    """Submits items, a bounded number at a time, and records each as it finishes."""
+
+    def __init__(self, items, todo, manifest, order, folder, method, seed, deformer,
+                 max_nonaffinity, max_cd, drop_rejected, progress):
+        self.todo, self.manifest, self.order, self.folder = todo, manifest, order, folder
+        self.method, self.seed, self.deformer = method, seed, deformer
+        self.max_nonaffinity, self.max_cd = max_nonaffinity, max_cd
+        self.drop_rejected, self.progress = drop_rejected, progress
+        self.total, self.finished = len(items), len(items) - len(todo)
+        self.cages = {}
+        for name, entry in manifest.cages.items():
+            path = os.path.join(folder, "cages", entry.get("file", ""))
+            if os.path.exists(path):
+                self.cages[name] = entry
+
+    def _cage_of(self, shape):
+        from cagekit.io import load_mesh
+
+        entry = self.cages.get(shape.name)
+        if self.method != "cage" or entry is None or entry["hash"] != shape.fingerprint:
+            return None
+        return load_mesh(os.path.join(self.folder, "cages", entry["file"]))
+
+    def _next(self, pending, fitting):
+        """The first pending item whose source's cage is known or not being fitted."""
+        for k, item in enumerate(pending):
+            name = item.source.name
+            if self.method != "cage" or name in self.cages or name not in fitting:
+                return pending.pop(k)
+        return None
+
+    def run(self, executor, workers):
+        if self.progress is not None:
+            self.progress(self.finished, self.total)
+        if not self.todo:
+            return
+        own = None
+        if executor is None:
+            workers = (os.cpu_count() or 1) if workers is None else int(workers)
+            if workers < 1:
+                raise InputError(f"workers must be at least 1, got {workers}")
+            if workers == 1:
+                for item in self.todo:
+                    self._record(item, deform_item(*self._args(item)))
+                return
+            # spawned, not forked: a fork of a process whose numba kernels started
+            # OpenMP threads is killed by the OpenMP runtime
+            executor = own = cf.ProcessPoolExecutor(
+                max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+                initializer=_ignore_interrupts)
+        window = 2 * (workers or 2)
+        pending, fitting, running = list(self.todo), set(), {}
+        try:
+            while pending or running:
+                while pending and len(running) < window:
+                    item = self._next(pending, fitting)
+                    if item is None:
+                        break
+                    if self.method == "cage" and item.source.name not in self.cages:
+                        fitting.add(item.source.name)
+                    running[executor.submit(deform_item, *self._args(item))] = item
+                done, _ = cf.wait(running, return_when=cf.FIRST_COMPLETED)
+                for future in done:
+                    item = running.pop(future)
+                    try:
+                        result = future.result()
+                    except Exception as exc:  # noqa: BLE001 - a worker died (memory, crash)
+                        result = {"status": "failed", "error": f"the worker failed: "
+                                  f"{one_line(exc)}", "cage": None, "seconds": 0.0,
+                                  "cage_seconds": 0.0}
+                    fitting.discard(item.source.name)
+                    self._record(item, result)
+        finally:
+            for future in running:
+                future.cancel()
+            if own is not None:
+                own.shutdown(wait=False, cancel_futures=True)
+
+    def _args(self, item):
+        return (item.source.location, item.target.location, self.method, self.seed,
+                self._cage_of(item.source), self.deformer)
+
+    def _record(self, item, result):
+        from cagekit.io import save_mesh
+
+        row = {"source": item.source.name, "target": item.target.name,
+               "output": item.output, "method": self.method, "seed": self.seed,
+               "status": result["status"], "error": result["error"],
+               "seconds": round(result.get("seconds", 0.0), 4),
+               "cage_seconds": round(result.get("cage_seconds", 0.0), 4),
+               "source_hash": item.source.fingerprint, "target_hash": item.target.fingerprint}
+        for name in _FIGURES:
+            row[name] = result.get(name)
+        if result["status"] == "ok":
+            row["status"] = _status(row, self.max_nonaffinity, self.max_cd)
+            if row["status"] == "ok" or not self.drop_rejected:
+                folder = "variations" if row["status"] == "ok" else "rejected"
+                save_mesh(os.path.join(self.folder, folder, item.output),
+                          result["vertices"], result["faces"])
+            if result.get("cage") is not None and item.source.name not in self.cages:
+                file = f"{item.source.stem}.obj"
+                save_mesh(os.path.join(self.folder, "cages", file), *result["cage"])
+                self.cages[item.source.name] = {"file": file, "hash": item.source.fingerprint}
+                self.manifest.cages[item.source.name] = self.cages[item.source.name]
+        self.manifest.rows[(item.source.name, item.target.name)] = row
+        self.manifest.save(self.order)
+        self.finished += 1
+        if self.progress is not None:
+            self.progress(self.finished, self.total)
+
+
+# ------------------------------------------------------------------------ contact sheet
+
+
+def contact_sheet(rows, items, folder, path, limit: int = 24) -> str:
+    """A PNG grid: source, target and variation of the first ``limit`` finished items.
+
+    Each row's caption names the pair, CD x1e2, the worst part's non-affinity (%) and the
+    status; rejected rows say REJECTED. Failed items are left out.
+
+    Parameters
+    ----------
+    rows : list of dict
+        Manifest rows (as :func:`amplify` returns them), in the order of ``items``.
+    items : list of Item
+    folder : str
+        The batch's output folder.
+    path : str
+        The PNG to write (atomically).
+    limit : int, default 24
+
+    Returns
+    -------
+    str
+        ``path``.
+    """
+    from cagekit.io import load_mesh
+    from cagekit.render import render_grid
+
+    shown, captions = [], []
+    for row, item in zip(rows, items):
+        if row["status"] == "failed":
+            continue
+        sub = "variations" if row["status"] == "ok" else "rejected"
+        file = os.path.join(folder, sub, row["output"])
+        if not os.path.exists(file):
+            continue
+        shown.append([load_shape_of(item.source.location), load_shape_of(item.target.location),
+                      load_mesh(file)])
+        mark = "REJECTED  " if row["status"] == "rejected" else ""
+        captions.append(f"{mark}{row['source']} -> {row['target']}: CD x1e2 "
+                        f"{100 * row['cd']:.2f}, worst part "
+                        f"{100 * row['part_nonaffinity_worst']:.2f}%")
+        if len(shown) == limit:
+            break
+    if not shown:
+        raise InputError("no finished variation to show on a contact sheet")
+    return render_grid(path, shown, captions=captions, size=(200, 200),
+                       titles=[["source", "target", "variation"]] * len(shown))

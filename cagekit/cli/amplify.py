@@ -1,0 +1,152 @@
+"""``cagekit amplify``: variations of a collection, on a process pool or a cluster."""
+
+from __future__ import annotations
+
+import os
+
+import click
+
+from cagekit.cli.common import (
+    FiniteFloatRange,
+    bar_callback,
+    debug_option,
+    emit_json,
+    json_option,
+    progress_bar,
+    start_command,
+)
+from cagekit.errors import InputError
+
+#: exit status when some items failed (each is recorded in the manifest)
+SOME_FAILED = 3
+
+
+def _pairs_option(ctx, param, value):
+    if value is None or value == "all":
+        return value
+    if not os.path.isfile(value):
+        raise InputError("no such pairs file (give a CSV of source,target names or 'all')",
+                         value)
+    return value
+
+
+@click.command(short_help="Variations of a collection of shapes (stock amplification).")
+@click.argument("collection", metavar="COLLECTION")
+@click.option("-o", "--output", "out", required=True, type=click.Path(file_okay=False),
+              help="Output folder (created; a rerun into it resumes).")
+@click.option("--variations", type=click.IntRange(min=1), default=None,
+              help="Number of random (source, target) pairs, drawn with --seed.")
+@click.option("--pairs", default=None, callback=_pairs_option, metavar="FILE|all",
+              help="A CSV of source,target names (as the manifest names shapes), or 'all'.")
+@click.option("--method", type=click.Choice(["cage", "scale", "model"]), default="cage",
+              show_default=True, help="Per-pair cage optimisation, box scaling, or a "
+              "trained model (--model).")
+@click.option("--model", "model_path", type=click.Path(exists=True), default=None,
+              help="Run folder or checkpoint of cagekit train (with --method model).")
+@click.option("--refine", is_flag=True, help="With --model: optimise each predicted cage.")
+@click.option("--category-by", type=click.Choice(["folder"]), default=None,
+              help="Pair shapes only within the same top sub-folder.")
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
+              help="Seed of the pairs and of every item.")
+@click.option("--workers", type=click.IntRange(min=1), default=None,
+              help="Local worker processes [default: every core].")
+@click.option("--cluster", default=None, metavar="ADDRESS|local",
+              help="Run on a Dask cluster (scheduler address, or 'local' for a local one "
+                   "of --workers processes); needs pip install -e '.[cluster]'.")
+@click.option("--max-nonaffinity", type=FiniteFloatRange(min=0.0), default=None,
+              help="Reject a variation of a multi-part source whose worst part is farther "
+                   "than this from an affine map (fraction of its size) [default: 0.02].")
+@click.option("--max-cd", type=FiniteFloatRange(min=0.0), default=None,
+              help="Reject a variation whose Chamfer distance to its target exceeds this "
+                   "(target's unit frame) [default: 0.05].")
+@click.option("--drop-rejected", is_flag=True, help="Do not keep rejected meshes.")
+@click.option("--contact-sheet", "sheet", type=click.Path(dir_okay=False), default=None,
+              help="PNG: source, target and variation of the first 24 items.")
+@json_option
+@debug_option
+@click.pass_context
+def amplify(ctx, collection, out, variations, pairs, method, model_path, refine,
+            category_by, seed, workers, cluster, max_nonaffinity, max_cd, drop_rejected,
+            sheet, as_json):
+    """Deform sources of COLLECTION onto targets of it: many plausible variations.
+
+    COLLECTION is a folder of meshes (searched recursively; ShapeNet's
+    <synset>/<id>/model.obj works) or synthetic:<family>:<count>. Outputs:
+    OUT/variations/<source>__<target>.obj, OUT/rejected/ (variations the filter
+    rejects), OUT/cages/ (each source's cage, fitted once), OUT/manifest.csv and
+    OUT/manifest.json (one row per item, rewritten after each). Running the same
+    command again redoes only missing items and items whose input files changed.
+    Exit status 0 when every item is ok or rejected, 3 when some failed (see the
+    manifest's error column), 2 for bad arguments.
+
+    \b
+    Example:
+      cagekit amplify chairs/ -o variations/ --variations 40 --contact-sheet sheet.png
+    """
+    from cagekit.amplify import MAX_CD, MAX_NONAFFINITY
+    from cagekit.amplify import amplify as run_batch
+
+    start_command(ctx)
+    if (variations is None) == (pairs is None):
+        raise click.UsageError("give one of --variations N and --pairs FILE|all")
+    if (method == "model") != (model_path is not None):
+        raise click.UsageError("--method model and --model RUN_DIR go together")
+    if refine and method != "model":
+        raise click.UsageError("--refine applies to --method model")
+    if os.path.exists(out) and not os.path.isdir(out):
+        raise InputError("exists and is not a folder", out)
+    deformer = _deformer(model_path, refine) if method == "model" else None
+    with _executor(cluster, workers) as executor, \
+            progress_bar("amplify", "item") as bar:
+        rows = run_batch(collection, out, variations=variations, pairs=pairs, method=method,
+                         deformer=deformer, category_by=category_by, seed=seed,
+                         workers=workers, executor=executor,
+                         max_nonaffinity=MAX_NONAFFINITY if max_nonaffinity is None
+                         else max_nonaffinity,
+                         max_cd=MAX_CD if max_cd is None else max_cd,
+                         drop_rejected=drop_rejected, contact_sheet_path=sheet,
+                         progress=bar_callback(bar))
+    counts = {status: sum(r["status"] == status for r in rows)
+              for status in ("ok", "rejected", "failed")}
+    if as_json:
+        emit_json({"output": out, "items": len(rows), **counts,
+                   "manifest": os.path.join(out, "manifest.csv"), "contact_sheet": sheet})
+    else:
+        click.echo(f"{len(rows)} items: {counts['ok']} ok, {counts['rejected']} rejected, "
+                   f"{counts['failed']} failed; manifest {os.path.join(out, 'manifest.csv')}")
+    if counts["failed"]:
+        ctx.exit(SOME_FAILED)
+
+
+def _deformer(model_path, refine):
+    """The model's deformer; the checkpoint is read here once, so a bad one exits 2."""
+    try:
+        from cagekit_learn.inference import ModelDeformer
+        from cagekit_learn.train import load_model
+    except ImportError as exc:
+        raise InputError(f"--model needs the learned mode: pip install -e '.[learn]' ({exc})",
+                         model_path) from None
+    load_model(model_path)
+    return ModelDeformer(model_path, refine)
+
+
+class _executor:
+    """The cluster's executor for ``--cluster`` (closed afterwards), else None."""
+
+    def __init__(self, cluster, workers):
+        self.cluster, self.workers, self.client = cluster, workers, None
+
+    def __enter__(self):
+        if self.cluster is None:
+            return None
+        from cagekit.cluster import connect
+
+        self.client = connect(self.cluster, self.workers)
+        return self.client.get_executor(pure=False)
+
+    def __exit__(self, *exc):
+        if self.client is not None:
+            from cagekit.cluster import close
+
+            close(self.client)
+        return False

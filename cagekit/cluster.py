@@ -1,0 +1,64 @@
+"""Connect to a Dask cluster for batches that outgrow one machine (``amplify --cluster``).
+
+Dask distributed was chosen over Ray by measurement (docs/benchmarks.md, "Stock
+amplification"): it installs in a few megabytes of pure Python, a local cluster of two
+workers starts in about two seconds, and a user points it at an existing cluster with
+the scheduler's address. Its ``Client.get_executor()`` is a ``concurrent.futures``
+executor, so :func:`cagekit.amplify.amplify` runs the same loop on it as on a process
+pool. Imported only when a cluster is asked for; the ``cluster`` extra installs it.
+"""
+
+from __future__ import annotations
+
+from cagekit.errors import InputError
+
+__all__ = ["close", "connect"]
+
+
+def connect(address: str, workers: int | None = None):
+    """A Dask client: of a new local cluster (``"local"``) or of a running scheduler.
+
+    Parameters
+    ----------
+    address : str
+        ``"local"``, or a scheduler address such as ``tcp://10.0.0.5:8786``.
+    workers : int, optional
+        Worker processes of a local cluster (one thread each); default 2. Ignored for a
+        running scheduler (its workers are what they are).
+
+    Returns
+    -------
+    distributed.Client
+        Close it with :func:`close`.
+
+    Raises
+    ------
+    InputError
+        Dask distributed is not installed, or the scheduler cannot be reached.
+
+    Examples
+    --------
+    >>> client = connect("local", workers=2)  # doctest: +SKIP
+    >>> executor = client.get_executor(pure=False)  # doctest: +SKIP
+    """
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise InputError("--cluster needs Dask distributed: pip install -e '.[cluster]'"
+                         ) from None
+    if address == "local":
+        cluster = LocalCluster(n_workers=int(workers or 2), threads_per_worker=1,
+                               processes=True, dashboard_address=None)
+        return Client(cluster)
+    try:
+        return Client(address, timeout="10s")
+    except (OSError, TimeoutError) as exc:
+        raise InputError(f"cannot reach the Dask scheduler at {address} ({exc})") from None
+
+
+def close(client) -> None:
+    """Close a client from :func:`connect`, and its local cluster if it made one."""
+    cluster = client.cluster
+    client.close()
+    if cluster is not None:
+        cluster.close()

@@ -1,0 +1,155 @@
+"""A collection of shapes: a folder of meshes, or a procedural family, by name.
+
+``cagekit amplify`` and :func:`cagekit.amplify.amplify` take a collection, name its shapes
+uniquely (for output files and pair lists), group them by category and fingerprint their
+content (so that a resumed batch redoes only what changed). Loading happens where the
+work runs (a worker process or a cluster node), from a :class:`Shape`'s ``location``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from cagekit.errors import InputError
+from cagekit.io import SUPPORTED_MESH_EXTENSIONS, load_mesh
+
+__all__ = ["SYNTHETIC_PREFIX", "Shape", "find_shapes", "load_shape_of"]
+
+#: a collection spec ``synthetic:<family>:<count>`` names procedural shapes
+#: (:data:`cagekit.datasets.synthetic.FAMILIES`, seeds 0 to count - 1)
+SYNTHETIC_PREFIX = "synthetic:"
+
+
+@dataclass(frozen=True)
+class Shape:
+    """One shape of a collection.
+
+    Attributes
+    ----------
+    name : str
+        Unique within the collection: the file's path below the collection folder,
+        without extension, ``/`` kept (``chairs/a1b2/model``), or ``chairs_007``.
+    location : str
+        A mesh file's absolute path, or ``synthetic:<family>:<seed>``.
+    category : str
+        The sub-folder the file lies in (``""`` at the top), or the family.
+    fingerprint : str
+        SHA-256 of the file's bytes, or of ``location`` for a procedural shape.
+    """
+
+    name: str
+    location: str
+    category: str
+    fingerprint: str
+
+    @property
+    def stem(self) -> str:
+        """``name`` with ``/`` replaced by ``-``: fit for a file name."""
+        return self.name.replace("/", "-")
+
+
+def _file_hash(path: str) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def _synthetic(spec: str) -> list[Shape]:
+    from cagekit.datasets.synthetic import FAMILIES
+
+    parts = spec.split(":")
+    if len(parts) != 3 or parts[1] not in FAMILIES or not parts[2].isdigit() \
+            or int(parts[2]) < 2:
+        raise InputError(f"a procedural collection is synthetic:<family>:<count> with family "
+                         f"one of {', '.join(FAMILIES)} and count >= 2, got {spec!r}")
+    family, count = parts[1], int(parts[2])
+    width = len(str(count - 1))
+    return [Shape(f"{family}_{i:0{width}d}", f"{SYNTHETIC_PREFIX}{family}:{i}", family,
+                  hashlib.sha256(f"{SYNTHETIC_PREFIX}{family}:{i}".encode()).hexdigest())
+            for i in range(count)]
+
+
+def find_shapes(collection: str) -> list[Shape]:
+    """The shapes of a collection, sorted by name.
+
+    Parameters
+    ----------
+    collection : str
+        A folder, searched recursively for mesh files
+        (:data:`cagekit.io.SUPPORTED_MESH_EXTENSIONS`; hidden files and folders skipped;
+        ShapeNet's ``<synset>/<id>/model.obj`` works), or ``synthetic:<family>:<count>``.
+
+    Returns
+    -------
+    list of Shape
+        At least two.
+
+    Raises
+    ------
+    InputError
+        Not a folder, fewer than two meshes, or a bad ``synthetic:`` spec.
+
+    Examples
+    --------
+    >>> [s.name for s in find_shapes("synthetic:vases:3")]
+    ['vases_0', 'vases_1', 'vases_2']
+    """
+    if collection.startswith(SYNTHETIC_PREFIX):
+        return _synthetic(collection)
+    root = os.path.abspath(collection)
+    if not os.path.isdir(root):
+        raise InputError("not a folder (a collection is a folder of meshes or "
+                         "synthetic:<family>:<count>)", collection)
+    shapes = []
+    for folder, dirs, files in os.walk(root):
+        dirs[:] = sorted(d for d in dirs if not d.startswith("."))
+        for file in sorted(files):
+            stem, ext = os.path.splitext(file)
+            if file.startswith(".") or ext.lower() not in SUPPORTED_MESH_EXTENSIONS:
+                continue
+            path = os.path.join(folder, file)
+            rel = os.path.relpath(path, root)
+            category = os.path.dirname(rel).split(os.sep)[0] if os.sep in rel else ""
+            name = os.path.splitext(rel)[0].replace(os.sep, "/")
+            try:
+                fingerprint = _file_hash(path)
+            except OSError as exc:
+                fingerprint = f"unreadable: {exc.strerror or exc}"
+            shapes.append(Shape(name, path, category, fingerprint))
+    names = [s.name for s in shapes]
+    if len(set(names)) != len(names):  # a.obj beside a.ply: keep the extension
+        shapes = [Shape(os.path.relpath(s.location, root).replace(os.sep, "/"), s.location,
+                        s.category, s.fingerprint) for s in shapes]
+    shapes.sort(key=lambda s: s.name)
+    if len(shapes) < 2:
+        raise InputError(f"found {len(shapes)} mesh file(s); a collection needs at least two "
+                         f"({', '.join(SUPPORTED_MESH_EXTENSIONS)})", collection)
+    return shapes
+
+
+def load_shape_of(location: str) -> tuple[np.ndarray, np.ndarray]:
+    """The mesh of a :class:`Shape`'s ``location``: ``(V (n, 3) float64, F (m, 3) int64)``.
+
+    Raises
+    ------
+    InputError
+        The file cannot be read or is not a mesh (:func:`cagekit.io.load_mesh`).
+
+    Examples
+    --------
+    >>> V, F = load_shape_of("synthetic:vases:0")
+    >>> V.shape[1], F.dtype
+    (3, dtype('int64'))
+    """
+    if location.startswith(SYNTHETIC_PREFIX):
+        from cagekit.datasets.synthetic import FAMILIES
+
+        family, seed = location[len(SYNTHETIC_PREFIX):].split(":")
+        return FAMILIES[family](seed=int(seed))
+    return load_mesh(location)

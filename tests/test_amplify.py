@@ -1,0 +1,203 @@
+"""Tests of cagekit.amplify, cagekit.collection and ``cagekit amplify``: plans, outputs,
+resume after SIGKILL, isolation of broken files, the filter, determinism across worker
+counts and a real local Dask cluster."""
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+from builders import ROOT, cagekit
+
+from cagekit.amplify import amplify, plan_pairs
+from cagekit.collection import find_shapes
+from cagekit.datasets import synthetic
+from cagekit.errors import InputError
+from cagekit.io import load_mesh, save_mesh
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory):
+    """Three small procedural chairs (two in tall/, one in low/) and a broken file."""
+    root = tmp_path_factory.mktemp("collection")
+    for name, seed in (("tall/a", 0), ("tall/b", 1), ("low/c", 2)):
+        os.makedirs(root / os.path.dirname(name), exist_ok=True)
+        save_mesh(root / f"{name}.obj", *synthetic.chair(seed=seed, resolution=0.5))
+    (root / "low" / "broken.obj").write_text("v 0 0 0\nf 1 2 3\n")
+    return root
+
+
+def rows_of(out):
+    with open(os.path.join(out, "manifest.csv"), newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+# ------------------------------------------------------------------------------ planning
+
+
+def test_collection_names_categories_and_fingerprints(folder):
+    shapes = find_shapes(str(folder))
+    assert [s.name for s in shapes] == ["low/broken", "low/c", "tall/a", "tall/b"]
+    assert [s.category for s in shapes] == ["low", "low", "tall", "tall"]
+    assert len({s.fingerprint for s in shapes}) == 4 and shapes[2].stem == "tall-a"
+    with pytest.raises(InputError, match="not a folder"):
+        find_shapes(str(folder / "missing"))
+    with pytest.raises(InputError, match="synthetic:<family>:<count>"):
+        find_shapes("synthetic:sofas:3")
+
+
+def test_plans_are_seeded_distinct_and_never_self_pairs():
+    shapes = find_shapes("synthetic:vases:6")
+    plan = plan_pairs(shapes, variations=30, seed=3)  # all 30 ordered pairs
+    assert len(set((a.name, b.name) for a, b in plan)) == 30
+    assert all(a.name != b.name for a, b in plan)
+    assert plan_pairs(shapes, variations=7, seed=3) == plan_pairs(shapes, variations=7, seed=3)
+    assert plan_pairs(shapes, variations=7, seed=3) != plan_pairs(shapes, variations=7, seed=4)
+    with pytest.raises(InputError, match="between 1 and 30"):
+        plan_pairs(shapes, variations=31)
+
+
+def test_pairs_within_a_folder_only(folder):
+    plan = plan_pairs(find_shapes(str(folder)), pairs="all", category_by="folder")
+    assert sorted((a.name, b.name) for a, b in plan) == [
+        ("low/broken", "low/c"), ("low/c", "low/broken"), ("tall/a", "tall/b"),
+        ("tall/b", "tall/a")]
+
+
+def test_pairs_file_with_unknown_names_exits_2_naming_them(folder, tmp_path):
+    listed = tmp_path / "pairs.csv"
+    listed.write_text("source,target\ntall/a,tall/b\ntall/a,nope\nghost,tall/b\n")
+    result = cagekit("amplify", folder, "-o", tmp_path / "out", "--pairs", listed)
+    assert result.returncode == 2
+    assert "2 name(s) not in the collection: ghost, nope" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "out").exists()
+
+
+# ------------------------------------------------------------------------------- a batch
+
+
+def test_batch_outputs_broken_file_filter_and_json(folder, tmp_path):
+    out = tmp_path / "out"
+    sheet = tmp_path / "sheet.png"
+    result = cagekit("amplify", folder, "-o", out, "--pairs", "all", "--category-by",
+                     "folder", "--method", "scale", "--workers", "1", "--contact-sheet",
+                     sheet, "--json")
+    assert result.returncode == 3, result.stderr  # the broken file's items failed
+    report = json.loads(result.stdout)
+    assert report["items"] == 4 and report["failed"] == 2
+    rows = {(r["source"], r["target"]): r for r in rows_of(out)}
+    assert rows[("low/broken", "low/c")]["status"] == "failed"
+    assert "source" in rows[("low/broken", "low/c")]["error"]
+    assert "broken.obj" in rows[("low/c", "low/broken")]["error"]
+    good = rows[("tall/a", "tall/b")]
+    assert good["status"] == "ok" and float(good["cd"]) > 0
+    V, F = load_mesh(out / "variations" / "tall-a__tall-b.obj")
+    source = load_mesh(folder / "tall" / "a.obj")
+    assert V.shape == source[0].shape and np.array_equal(F, source[1])
+    assert sheet.stat().st_size > 10_000
+    # a filter that rejects everything moves the kept meshes to rejected/, redoing nothing
+    again = cagekit("amplify", folder, "-o", out, "--pairs", "all", "--category-by",
+                    "folder", "--method", "scale", "--workers", "1", "--max-cd", "0")
+    assert again.returncode == 3
+    rows = {(r["source"], r["target"]): r for r in rows_of(out)}
+    assert rows[("tall/a", "tall/b")]["status"] == "rejected"
+    assert rows[("tall/a", "tall/b")]["seconds"] == good["seconds"]  # not redone
+    assert (out / "rejected" / "tall-a__tall-b.obj").exists()
+    assert not (out / "variations" / "tall-a__tall-b.obj").exists()
+
+
+def test_multi_part_variations_bent_beyond_the_threshold_are_rejected(tmp_path):
+    rows = amplify("synthetic:chairs:3", str(tmp_path), pairs="all", method="scale",
+                   workers=1, max_nonaffinity=0.0)
+    # box scaling keeps every part exactly affine (non-affinity ~1e-15): only a threshold
+    # of 0 rejects it, and then every multi-part variation is rejected
+    assert {r["status"] for r in rows} == {"rejected"}
+    assert all(r["parts"] >= 2 and r["part_nonaffinity_worst"] < 1e-9 for r in rows)
+    kept = amplify("synthetic:chairs:3", str(tmp_path), pairs="all", method="scale",
+                   workers=1, drop_rejected=True, max_nonaffinity=0.0)
+    assert not os.listdir(tmp_path / "rejected") and len(kept) == 6
+
+
+def test_results_do_not_depend_on_workers_or_a_dask_cluster(tmp_path):
+    from cagekit.cluster import close, connect
+
+    runs = {}
+    for name, options in (("one", {"workers": 1}), ("two", {"workers": 2})):
+        runs[name] = amplify("synthetic:vases:3", str(tmp_path / name), variations=4,
+                             seed=5, **options)
+    client = connect("local", workers=2)
+    try:
+        runs["dask"] = amplify("synthetic:vases:3", str(tmp_path / "dask"), variations=4,
+                               seed=5, executor=client.get_executor(pure=False))
+    finally:
+        close(client)
+    for name in ("two", "dask"):
+        for a, b in zip(runs["one"], runs[name]):
+            assert (a["source"], a["target"], a["status"]) == (b["source"], b["target"],
+                                                                b["status"])
+            assert a["cd"] == b["cd"] and a["dcotlap"] == b["dcotlap"]
+            files = [load_mesh(tmp_path / run / "variations" / a["output"])[0]
+                     if a["status"] == "ok" else None for run in ("one", name)]
+            if files[0] is not None:
+                np.testing.assert_array_equal(*files)
+    # one cage per source, fitted once and reused: sources of several pairs fit once
+    sources = [r["source"] for r in runs["one"]]
+    fitted = [r["source"] for r in runs["one"] if r["cage_seconds"] > 0]
+    assert sorted(fitted) == sorted(set(sources))
+    assert len(os.listdir(tmp_path / "one" / "cages")) == len(set(sources))
+
+
+def test_resume_after_sigkill_redoes_nothing_and_loses_nothing(tmp_path):
+    out = tmp_path / "out"
+    args = [sys.executable, "-m", "cagekit.cli", "amplify", "synthetic:vases:3", "-o",
+            str(out), "--variations", "5", "--workers", "1"]
+    env = dict(os.environ, PYTHONPATH=ROOT + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    process = subprocess.Popen(args, env=env, stdout=subprocess.DEVNULL,
+                               stderr=subprocess.DEVNULL)
+    manifest = out / "manifest.json"
+    deadline = time.monotonic() + 240
+    while time.monotonic() < deadline:
+        if manifest.exists() and len(json.loads(manifest.read_text())["items"]) >= 2:
+            break
+        time.sleep(0.05)
+    process.send_signal(signal.SIGKILL)
+    process.wait()
+    before = {(r["source"], r["target"]): r for r in json.loads(manifest.read_text())["items"]}
+    assert 2 <= len(before) < 5
+    result = cagekit("amplify", "synthetic:vases:3", "-o", out, "--variations", "5",
+                     "--workers", "1", "--json")
+    assert result.returncode == 0, result.stderr
+    after = {(r["source"], r["target"]): r for r in json.loads(manifest.read_text())["items"]}
+    assert len(after) == 5
+    for key, row in before.items():
+        assert after[key] == row  # kept as it was: not done twice
+    assert not [f for f in os.listdir(out / "variations") if f.startswith(".")]
+    # a finished batch: a rerun does nothing
+    start = time.perf_counter()
+    assert cagekit("amplify", "synthetic:vases:3", "-o", out, "--variations", "5").returncode \
+        == 0
+    assert json.loads(manifest.read_text())["items"] == list(after.values())
+    assert time.perf_counter() - start < 60
+
+
+def test_a_changed_input_redoes_its_items_only(tmp_path):
+    collection = tmp_path / "shapes"
+    collection.mkdir()
+    for i in range(3):
+        save_mesh(collection / f"v{i}.obj", *synthetic.vase(seed=i, resolution=0.5))
+    out = str(tmp_path / "out")
+    first = amplify(str(collection), out, pairs="all", method="scale", workers=1)
+    save_mesh(collection / "v2.obj", *synthetic.vase(seed=7, resolution=0.5))
+    second = amplify(str(collection), out, pairs="all", method="scale", workers=1)
+    for a, b in zip(first, second):
+        changed = "v2" in (a["source"], a["target"])
+        assert (a["target_hash"] != b["target_hash"] or a["source_hash"] != b["source_hash"]
+                ) == changed
+        if not changed:
+            assert a == b
