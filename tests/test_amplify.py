@@ -125,18 +125,15 @@ def test_multi_part_variations_bent_beyond_the_threshold_are_rejected(tmp_path):
 
 
 def test_results_do_not_depend_on_workers_or_a_dask_cluster(tmp_path):
-    from cagekit.cluster import close, connect
-
     runs = {}
     for name, options in (("one", {"workers": 1}), ("two", {"workers": 2})):
         runs[name] = amplify("synthetic:vases:3", str(tmp_path / name), variations=4,
                              seed=5, **options)
-    client = connect("local", workers=2)
-    try:
-        runs["dask"] = amplify("synthetic:vases:3", str(tmp_path / "dask"), variations=4,
-                               seed=5, executor=client.get_executor(pure=False))
-    finally:
-        close(client)
+    # a real local Dask cluster of two worker processes, through the command line
+    result = cagekit("amplify", "synthetic:vases:3", "-o", tmp_path / "dask", "--variations",
+                     "4", "--seed", "5", "--cluster", "local", "--workers", "2")
+    assert result.returncode == 0, result.stderr
+    runs["dask"] = json.loads((tmp_path / "dask" / "manifest.json").read_text())["items"]
     for name in ("two", "dask"):
         for a, b in zip(runs["one"], runs[name]):
             assert (a["source"], a["target"], a["status"]) == (b["source"], b["target"],
@@ -201,3 +198,27 @@ def test_a_changed_input_redoes_its_items_only(tmp_path):
                 ) == changed
         if not changed:
             assert a == b
+
+
+def test_sigint_stops_a_pool_batch_cleanly(tmp_path):
+    out = tmp_path / "out"
+    args = [sys.executable, "-m", "cagekit.cli", "amplify", "synthetic:vases:3", "-o",
+            str(out), "--variations", "6", "--workers", "2"]
+    env = dict(os.environ, PYTHONPATH=ROOT + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    process = subprocess.Popen(args, env=env, stdout=subprocess.DEVNULL,
+                               stderr=subprocess.PIPE, text=True)
+    manifest = out / "manifest.json"
+    deadline = time.monotonic() + 240
+    while time.monotonic() < deadline:
+        if manifest.exists() and json.loads(manifest.read_text())["items"]:
+            break
+        time.sleep(0.05)
+    process.send_signal(signal.SIGINT)
+    _, stderr = process.communicate(timeout=120)
+    assert process.returncode == 130 and stderr.strip().endswith("interrupted")
+    rows = json.loads(manifest.read_text())["items"]
+    assert 1 <= len(rows) < 6 and all(r["status"] in ("ok", "rejected") for r in rows)
+    result = cagekit("amplify", "synthetic:vases:3", "-o", out, "--variations", "6",
+                     "--workers", "2")
+    assert result.returncode == 0, result.stderr
+    assert len(json.loads(manifest.read_text())["items"]) == 6
