@@ -5,7 +5,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-emulated test-slow lint assets bench bench-assets bench-fit-cage bench-deform bench-learn bench-transfer venv clean
+.PHONY: demo test test-emulated test-slow lint assets bench bench-assets bench-fit-cage bench-deform bench-learn bench-transfer bench-amplify venv clean
 
 $(STAMP): setup.cfg pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -71,6 +71,11 @@ bench-learn: $(STAMP)
 bench-transfer: $(STAMP)
 	$(BIN)/python benchmarks/bench_transfer.py --json out/bench_transfer.json --grid-dir out/transfer
 	$(BIN)/python benchmarks/bench_character_cage.py --json out/bench_character_cage.json
+
+# 40 variations of sweethome3d-furniture's chairs: 1 worker, 2 workers, a local Dask cluster
+bench-amplify: $(STAMP)
+	$(BIN)/pip install -q -e '.[dev,bench,cluster]'
+	$(BIN)/python benchmarks/bench_amplify.py --json out/bench_amplify.json --sheet docs/images/amplify_sheet.png
 
 clean:
 	rm -rf out .pytest_cache build *.egg-info
