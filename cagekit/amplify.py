@@ -179,6 +179,12 @@ def deform_item(source: str, target: str, method: str = "cage", seed: int = 0, c
                 deformer=None) -> dict:
     """Make one variation: a pure function of its arguments, run by a worker.
 
+    BLAS runs single-threaded inside (``threadpoolctl``): OpenBLAS's results depend on its
+    thread count in the last bits, which the optimisation amplifies, so without the limit
+    a Dask worker (one thread) and a pool worker (all cores) gave different variations.
+    Results are identical across worker counts and engines on machines of one CPU type;
+    different CPUs (other BLAS kernels) may differ in the last bits and beyond.
+
     Parameters
     ----------
     source, target : str
@@ -201,29 +207,14 @@ def deform_item(source: str, target: str, method: str = "cage", seed: int = 0, c
         ``cage`` used (or None), ``seconds`` (the whole item) and ``cage_seconds`` (the fit,
         0 when the cage was given).
     """
-    from cagekit.deformation import deform
-    from cagekit.metrics import evaluate
+    from threadpoolctl import threadpool_limits
 
     start = time.perf_counter()
     out = {"status": "failed", "error": "", "cage": None, "cage_seconds": 0.0}
     try:
-        Vs, Fs = _loaded("source", source)
-        Vt, Ft = _loaded("target", target)
-        if method == "model":
-            result = deformer((Vs, Fs), (Vt, Ft), seed)
-        elif method == "scale":
-            result = deform((Vs, Fs), (Vt, Ft), method="scale")
-        elif method == "cage":
-            if cage is None:
-                t0 = time.perf_counter()
-                cage = _fit(Vs, Fs, seed)
-                out["cage_seconds"] = time.perf_counter() - t0
-            result = deform((Vs, Fs), (Vt, Ft), cage=cage, seed=seed, check=False)
-            out["cage"] = cage
-        else:
-            raise InputError(f"unknown method {method!r}; available: {', '.join(METHODS)}")
-        figures = evaluate((Vs, Fs), (Vt, Ft), (result.vertices, Fs), seed=seed,
-                           frames=(result.source_frame, result.target_frame))
+        with threadpool_limits(limits=1, user_api="blas"):
+            figures, result, Fs = _deform_and_score(source, target, method, seed, cage,
+                                                    deformer, out)
     except Exception as exc:  # noqa: BLE001 - one item fails, never the batch
         out["error"] = one_line(exc)
         out["seconds"] = time.perf_counter() - start
@@ -232,6 +223,31 @@ def deform_item(source: str, target: str, method: str = "cage", seed: int = 0, c
     out.update(status="ok", vertices=result.vertices, faces=Fs,
                seconds=time.perf_counter() - start)
     return out
+
+
+def _deform_and_score(source, target, method, seed, cage, deformer, out):
+    """The item's work (see :func:`deform_item`); the fitted cage and its time in ``out``."""
+    from cagekit.deformation import deform
+    from cagekit.metrics import evaluate
+
+    Vs, Fs = _loaded("source", source)
+    Vt, Ft = _loaded("target", target)
+    if method == "model":
+        result = deformer((Vs, Fs), (Vt, Ft), seed)
+    elif method == "scale":
+        result = deform((Vs, Fs), (Vt, Ft), method="scale")
+    elif method == "cage":
+        if cage is None:
+            t0 = time.perf_counter()
+            cage = _fit(Vs, Fs, seed)
+            out["cage_seconds"] = time.perf_counter() - t0
+        result = deform((Vs, Fs), (Vt, Ft), cage=cage, seed=seed, check=False)
+        out["cage"] = cage
+    else:
+        raise InputError(f"unknown method {method!r}; available: {', '.join(METHODS)}")
+    figures = evaluate((Vs, Fs), (Vt, Ft), (result.vertices, Fs), seed=seed,
+                       frames=(result.source_frame, result.target_frame))
+    return figures, result, Fs
 
 
 def _loaded(role, location):
@@ -412,11 +428,16 @@ def _refile(row, status, folder, drop_rejected):
         os.replace(found, wanted)
 
 
-def _ignore_interrupts():
-    """Pool workers leave Ctrl-C to the main process, which stops the batch."""
+def _pool_worker():
+    """A pool worker: leaves Ctrl-C to the main process (which stops the batch) and runs
+    numba's kernels on one thread (the workers share the cores; numba's thread count does
+    not change results)."""
     import signal
 
+    import numba
+
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    numba.set_num_threads(1)
 
 
 class _Runner:
@@ -469,7 +490,7 @@ class _Runner:
             # OpenMP threads is killed by the OpenMP runtime
             executor = own = cf.ProcessPoolExecutor(
                 max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                initializer=_ignore_interrupts)
+                initializer=_pool_worker)
         window = 2 * (workers or 2)
         pending, fitting, running = list(self.todo), set(), {}
         try:

@@ -22,7 +22,12 @@ import torch
 from torch.autograd.function import once_differentiable
 
 from cagekit.errors import InputError
-from cagekit.losses import ALPHA_MVC, ALPHA_SHAPE, axis_index  # the paper's weights, defined once
+from cagekit.losses import (  # the paper's weights and the plane test, defined once
+    ALPHA_MVC,
+    ALPHA_SHAPE,
+    PLANE_GAP,
+    axis_index,
+)
 
 __all__ = [
     "ALPHA_MVC",
@@ -319,6 +324,9 @@ class ShapeReference(NamedTuple):
         Rest PCA normals ``n^0`` (unit, arbitrary sign).
     distances : (B, r) float tensor
         Rest signed distances ``d^0`` of each own point to its plane.
+    planar : (B, r) bool tensor or None
+        Rows whose rest neighbourhood has a plane (``cagekit.losses.PLANE_GAP``); the
+        losses average over these only. None: every row.
     """
 
     own: torch.Tensor
@@ -326,6 +334,7 @@ class ShapeReference(NamedTuple):
     mask: torch.Tensor
     normals: torch.Tensor
     distances: torch.Tensor
+    planar: torch.Tensor | None = None
 
 
 def _planes(X: torch.Tensor, index: torch.Tensor, mask: torch.Tensor):
@@ -408,7 +417,9 @@ def shape_reference(X: torch.Tensor, index, mask=None, own=None) -> ShapeReferen
     Returns
     -------
     ShapeReference
-        On ``X``'s device, in ``X``'s dtype.
+        On ``X``'s device, in ``X``'s dtype. The batch keeps every row; rows without a
+        plane (points on a line) are marked in ``planar`` and left out of the losses,
+        as :func:`cagekit.losses.shape_reference` drops them.
 
     Examples
     --------
@@ -436,10 +447,12 @@ def shape_reference(X: torch.Tensor, index, mask=None, own=None) -> ShapeReferen
     if not mask.any(dim=-1).all():
         raise InputError("every neighbourhood needs at least one real member")
     cov, centroid = _planes(X, index, mask)
-    normals = torch.linalg.eigh(cov)[1][..., 0]
+    lam, vec = torch.linalg.eigh(cov)
+    normals = vec[..., 0]
     distances = ((_gather(X, own) - centroid) * normals).sum(dim=-1)
+    planar = lam[..., 1] - lam[..., 0] > PLANE_GAP * lam[..., 2]
     return ShapeReference(own.contiguous(), index.contiguous(), mask.contiguous(), normals,
-                          distances)
+                          distances, planar)
 
 
 def shape_losses(X: torch.Tensor, ref: ShapeReference) -> dict[str, torch.Tensor]:
@@ -471,10 +484,20 @@ def shape_losses(X: torch.Tensor, ref: ShapeReference) -> dict[str, torch.Tensor
     cos = (n_raw * n0).sum(dim=-1)
     flip = 1.0 - 2.0 * (cos.detach() < 0).to(X.dtype)  # orients n along n0; a constant
     # |cos| may exceed 1 by rounding: clamp so the value is never negative
-    normal = (1.0 - cos * flip).clamp_min(0.0).mean(dim=-1)
+    normal = (1.0 - cos * flip).clamp_min(0.0)
     offset = _gather(X, ref.own) - centroid
     residual = (offset * n_raw).sum(dim=-1) * flip - ref.distances.to(X.dtype)
-    return {"p2f": residual.square().mean(dim=-1), "normal": normal}
+    return {"p2f": _planar_mean(residual.square(), ref), "normal": _planar_mean(normal, ref)}
+
+
+def _planar_mean(values: torch.Tensor, ref: ShapeReference) -> torch.Tensor:
+    """Mean over each batch item's planar rows, (B, r) -> (B,); 0 where it has none."""
+    if ref.planar is None:
+        return values.mean(dim=-1)
+    w = ref.planar.to(values.dtype)
+    # where() so a degenerate row's non-finite value cannot reach the sum or the gradient
+    kept = torch.where(ref.planar, values, torch.zeros_like(values))
+    return (kept * w).sum(dim=-1) / w.sum(dim=-1).clamp_min(1.0)
 
 
 def normal_loss(X: torch.Tensor, ref: ShapeReference) -> torch.Tensor:

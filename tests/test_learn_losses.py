@@ -283,18 +283,19 @@ def test_shape_reference_equals_numpy(case):
     B, r = ref.distances.shape
     assert ref.own.shape == (B, r) and ref.index.shape[:2] == ref.mask.shape[:2] == (B, r)
     assert not any(t.requires_grad for t in ref)
+    assert ref.planar.shape == (B, r)
     for b in range(B):
         expected = numpy_ref(X0[b], index, mask, own, b)
-        np.testing.assert_array_equal(ref.own[b].numpy(), expected.own)
-        np.testing.assert_array_equal(ref.index[b].numpy(), expected.index)
-        np.testing.assert_array_equal(ref.mask[b].numpy(), expected.mask)
+        kept = ref.planar[b].numpy()  # NumPy drops the rows without a plane
+        np.testing.assert_array_equal(ref.own[b].numpy()[kept], expected.own)
+        np.testing.assert_array_equal(ref.index[b].numpy()[kept], expected.index)
+        np.testing.assert_array_equal(ref.mask[b].numpy()[kept], expected.mask)
         # the normal's sign is arbitrary; the signed distance flips with it
-        sign = np.sign(np.einsum("ri,ri->r", ref.normals[b].numpy(), expected.normals))
+        normals, distances = ref.normals[b].numpy()[kept], ref.distances[b].numpy()[kept]
+        sign = np.sign(np.einsum("ri,ri->r", normals, expected.normals))
         assert (sign != 0).all()
-        np.testing.assert_allclose(ref.normals[b].numpy() * sign[:, None], expected.normals,
-                                   rtol=0, atol=1e-12)
-        np.testing.assert_allclose(ref.distances[b].numpy() * sign, expected.distances,
-                                   rtol=0, atol=1e-12)
+        np.testing.assert_allclose(normals * sign[:, None], expected.normals, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(distances * sign, expected.distances, rtol=0, atol=1e-12)
 
 
 @pytest.mark.parametrize("case", CASES)
@@ -443,6 +444,9 @@ def test_degenerate_neighbourhoods_have_finite_gradients(moved, dtype):
     X0, own, index, mask = degenerate_case()
     ref = tl.shape_reference(torch.tensor(X0, dtype=dtype)[None], index, mask, own)
     assert all(torch.isfinite(t).all() for t in (ref.normals, ref.distances))
+    # only the square has a plane, as in NumPy, which drops the other rows
+    assert ref.planar.tolist() == [[False, False, False, True]]
+    assert npl.shape_reference(X0, own, index, mask).own.tolist() == [4]
     X = {
         "rest": X0,
         "collinear": X0 * [1.3, 0, 0] + [0.1, 0.2, 0.3],  # every point on one line
