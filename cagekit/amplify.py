@@ -428,16 +428,29 @@ def _refile(row, status, folder, drop_rejected):
         os.replace(found, wanted)
 
 
+def prepare_worker() -> None:
+    """Ready a worker process; call it in the process's main thread before any item.
+
+    Imports pymeshlab there: imported and first used in another thread (a Dask worker's
+    task thread), it leaves glibc's heap to report "malloc_consolidate(): unaligned
+    fastbin chunk detected" and abort when the process exits (reproduced without Dask or
+    numba; imported in the main thread first, it never happens). Runs numba's kernels on
+    one thread, as the workers share the cores (numba's thread count does not change
+    results).
+    """
+    import numba
+    import pymeshlab  # noqa: F401 - imported for its side effect, see above
+
+    numba.set_num_threads(1)
+
+
 def _pool_worker():
-    """A pool worker: leaves Ctrl-C to the main process (which stops the batch) and runs
-    numba's kernels on one thread (the workers share the cores; numba's thread count does
-    not change results)."""
+    """A pool worker: :func:`prepare_worker`, and Ctrl-C left to the main process (which
+    stops the batch)."""
     import signal
 
-    import numba
-
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    numba.set_num_threads(1)
+    prepare_worker()
 
 
 class _Runner:

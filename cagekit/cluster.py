@@ -15,7 +15,7 @@ from cagekit.errors import InputError
 __all__ = ["close", "connect"]
 
 
-def connect(address: str, workers: int | None = None):
+def connect(address: str, workers: int | None = None, setup=None):
     """A Dask client: of a new local cluster (``"local"``) or of a running scheduler.
 
     Parameters
@@ -25,6 +25,9 @@ def connect(address: str, workers: int | None = None):
     workers : int, optional
         Worker processes of a local cluster (one thread each); default 2. Ignored for a
         running scheduler (its workers are what they are).
+    setup : callable, optional
+        Run once in the main thread of every worker, today's and those that join later
+        (a Dask worker plugin), for example :func:`cagekit.amplify.prepare_worker`.
 
     Returns
     -------
@@ -49,11 +52,30 @@ def connect(address: str, workers: int | None = None):
     if address == "local":
         cluster = LocalCluster(n_workers=int(workers or 2), threads_per_worker=1,
                                processes=True, dashboard_address=None)
-        return Client(cluster)
-    try:
-        return Client(address, timeout="10s")
-    except (OSError, TimeoutError) as exc:
-        raise InputError(f"cannot reach the Dask scheduler at {address} ({exc})") from None
+        client = Client(cluster)
+    else:
+        try:
+            client = Client(address, timeout="10s")
+        except (OSError, TimeoutError) as exc:
+            raise InputError(f"cannot reach the Dask scheduler at {address} ({exc})"
+                             ) from None
+    if setup is not None:
+        client.register_plugin(_Setup(setup))
+    return client
+
+
+def _Setup(function):
+    """A Dask worker plugin that calls ``function()`` as each worker starts (in its event
+    loop's thread, the worker process's main thread)."""
+    from distributed.diagnostics.plugin import WorkerPlugin
+
+    class Setup(WorkerPlugin):
+        name = "cagekit-setup"
+
+        def setup(self, worker):
+            function()
+
+    return Setup()
 
 
 def close(client) -> None:

@@ -133,6 +133,8 @@ def test_results_do_not_depend_on_workers_or_a_dask_cluster(tmp_path):
     result = cagekit("amplify", "synthetic:vases:3", "-o", tmp_path / "dask", "--variations",
                      "4", "--seed", "5", "--cluster", "local", "--workers", "2")
     assert result.returncode == 0, result.stderr
+    # pymeshlab first imported in a worker's task thread corrupted the heap at exit
+    assert "malloc" not in result.stderr, result.stderr
     runs["dask"] = json.loads((tmp_path / "dask" / "manifest.json").read_text())["items"]
     for name in ("two", "dask"):
         for a, b in zip(runs["one"], runs[name]):

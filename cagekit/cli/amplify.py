@@ -139,9 +139,10 @@ class _executor:
     def __enter__(self):
         if self.cluster is None:
             return None
+        from cagekit.amplify import prepare_worker
         from cagekit.cluster import connect
 
-        self.client = connect(self.cluster, self.workers)
+        self.client = connect(self.cluster, self.workers, setup=prepare_worker)
         return self.client.get_executor(pure=False)
 
     def __exit__(self, *exc):
