@@ -212,6 +212,10 @@ def deform_item(source: str, target: str, method: str = "cage", seed: int = 0, c
     start = time.perf_counter()
     out = {"status": "failed", "error": "", "cage": None, "cage_seconds": 0.0}
     try:
+        if _WORKER_NUMBA_THREADS is not None:
+            import numba
+
+            numba.set_num_threads(_WORKER_NUMBA_THREADS)
         with threadpool_limits(limits=1, user_api="blas"):
             figures, result, Fs = _deform_and_score(source, target, method, seed, cage,
                                                     deformer, out)
@@ -441,7 +445,28 @@ def prepare_worker() -> None:
     import numba
     import pymeshlab  # noqa: F401 - imported for its side effect, see above
 
+    global _WORKER_NUMBA_THREADS
+    _WORKER_NUMBA_THREADS = 1
     numba.set_num_threads(1)
+
+
+#: numba threads of an item in a prepared worker (:func:`prepare_worker`); None: numba's
+#: default. numba's thread count is per thread, and a Dask worker runs items in a task
+#: thread, so :func:`deform_item` sets it again there (2 Dask workers of 2 threads each
+#: on 2 cores ran items 35% slower than the pool's).
+_WORKER_NUMBA_THREADS = None
+
+
+def process_pool(workers: int) -> cf.ProcessPoolExecutor:
+    """The local pool :func:`amplify` runs on: ``workers`` processes, each prepared by
+    :func:`prepare_worker` and leaving Ctrl-C to the main process.
+
+    Spawned, not forked: a fork of a process whose numba kernels started OpenMP threads
+    is killed by the OpenMP runtime.
+    """
+    return cf.ProcessPoolExecutor(max_workers=workers,
+                                  mp_context=multiprocessing.get_context("spawn"),
+                                  initializer=_pool_worker)
 
 
 def _pool_worker():
@@ -499,11 +524,7 @@ class _Runner:
                 for item in self.todo:
                     self._record(item, deform_item(*self._args(item)))
                 return
-            # spawned, not forked: a fork of a process whose numba kernels started
-            # OpenMP threads is killed by the OpenMP runtime
-            executor = own = cf.ProcessPoolExecutor(
-                max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                initializer=_pool_worker)
+            executor = own = process_pool(workers)
         window = 2 * (workers or 2)
         pending, fitting, running = list(self.todo), set(), {}
         try:
@@ -571,8 +592,9 @@ class _Runner:
 def contact_sheet(rows, items, folder, path, limit: int = 24) -> str:
     """A PNG grid: source, target and variation of the first ``limit`` finished items.
 
-    Each row's caption names the pair, CD x1e2, the worst part's non-affinity (%) and the
-    status; rejected rows say REJECTED. Failed items are left out.
+    Items stand :data:`SHEET_COLUMNS` to a line; each one's caption names the pair (long
+    names cut from the front), CD x1e2 and the worst part's non-affinity (%); rejected
+    ones say REJECTED. Failed items are left out.
 
     Parameters
     ----------
@@ -604,12 +626,22 @@ def contact_sheet(rows, items, folder, path, limit: int = 24) -> str:
         shown.append([load_shape_of(item.source.location), load_shape_of(item.target.location),
                       load_mesh(file)])
         mark = "REJECTED  " if row["status"] == "rejected" else ""
-        captions.append(f"{mark}{row['source']} -> {row['target']}: CD x1e2 "
+        captions.append(f"{_short(row['source'])} -> {_short(row['target'])}\n{mark}CD x1e2 "
                         f"{100 * row['cd']:.2f}, worst part "
                         f"{100 * row['part_nonaffinity_worst']:.2f}%")
         if len(shown) == limit:
             break
     if not shown:
         raise InputError("no finished variation to show on a contact sheet")
-    return render_grid(path, shown, captions=captions, size=(200, 200),
-                       titles=[["source", "target", "variation"]] * len(shown))
+    return render_grid(path, shown, captions=captions, size=(180, 200),
+                       titles=[["source", "target", "variation"]] * len(shown),
+                       columns=SHEET_COLUMNS)
+
+
+#: Items side by side on a line of the contact sheet.
+SHEET_COLUMNS = 4
+
+
+def _short(name: str, width: int = 24) -> str:
+    """A shape's name cut to ``width`` characters from its end (the distinctive part)."""
+    return name if len(name) <= width else "..." + name[-(width - 3):]

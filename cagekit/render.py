@@ -317,7 +317,7 @@ def render_meshes(
     fig.patch.set_facecolor("white")
     # room (in pixels) kept free for the titles above the first row and the caption below
     top_px = min(24, height // 4) if titles is not None else 0
-    bottom_px = min(22, height // 4) if caption else 0
+    bottom_px = min(6 + 16 * (caption.count("\n") + 1), height // 3) if caption else 0
     for r, (elev, azim) in enumerate(views):
         y0_px = (nrows - 1 - r) * height + (bottom_px if r == nrows - 1 else 0)
         h_px = height - (top_px if r == 0 else 0) - (bottom_px if r == nrows - 1 else 0)
@@ -339,7 +339,8 @@ def render_meshes(
 
 def render_grid(path, rows, *, cages=None, titles=None, captions=None,
                 size: tuple[int, int] = (240, 300), same_scale: bool = False,
-                views: Sequence[tuple[float, float]] = ((20, -60),), up: str = "y") -> str:
+                views: Sequence[tuple[float, float]] = ((20, -60),), up: str = "y",
+                columns: int = 1) -> str:
     """Rows of shapes in one PNG (atomically): each row a :func:`render_meshes` picture.
 
     Parameters
@@ -352,9 +353,12 @@ def render_grid(path, rows, *, cages=None, titles=None, captions=None,
     cages, titles : sequences (one per row) of sequences (one per shape), optional
         As :func:`render_meshes` takes them for one row; None for a row without.
     captions : sequence of str, optional
-        One line under each row (None for none).
+        A caption under each row (None for none; may hold line breaks).
     size, same_scale, views, up
         As :func:`render_meshes`, for every row (``same_scale`` within a row).
+    columns : int, default 1
+        Rows placed side by side, this many to a line of the picture (a contact sheet of
+        many short rows stays near square).
 
     Returns
     -------
@@ -387,9 +391,9 @@ def render_grid(path, rows, *, cages=None, titles=None, captions=None,
                           caption=None if captions is None else captions[i], size=size,
                           same_scale=same_scale, views=views, up=up)
             images.append(imread(png)[..., :3])
-    width = max(image.shape[1] for image in images)
-    grid = np.concatenate([np.pad(image, ((0, 0), (0, width - image.shape[1]), (0, 0)),
-                                  constant_values=1.0) for image in images], axis=0)
+    lines = [_side_by_side(images[i:i + columns], axis=1)
+             for i in range(0, len(images), max(1, int(columns)))]
+    grid = _side_by_side(lines, axis=0)
     fig = Figure(figsize=(grid.shape[1] / _DPI, grid.shape[0] / _DPI), dpi=_DPI)
     ax = fig.add_axes((0, 0, 1, 1))
     ax.imshow(grid, interpolation="nearest")
@@ -397,3 +401,15 @@ def render_grid(path, rows, *, cages=None, titles=None, captions=None,
     with atomic_output(path) as tmp:
         fig.savefig(tmp, format="png", dpi=_DPI)
     return os.fspath(path)
+
+
+def _side_by_side(images, axis: int) -> np.ndarray:
+    """Images joined along ``axis`` (0: stacked, 1: in a line), padded with white."""
+    other = 1 - axis
+    extent = max(image.shape[other] for image in images)
+    padded = []
+    for image in images:
+        pad = [(0, 0), (0, 0), (0, 0)]
+        pad[other] = (0, extent - image.shape[other])
+        padded.append(np.pad(image, pad, constant_values=1.0))
+    return np.concatenate(padded, axis=axis)

@@ -168,3 +168,27 @@ def test_cagekit_deform_without_model_never_imports_torch(pair, tmp_path):
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True, cwd=ROOT)
     assert out.stdout.strip().splitlines()[-1] == "False"
+
+
+def test_amplify_with_a_model_on_two_workers_matches_one_worker(run_dir, tmp_path, capsys):
+    # the model travels to the workers as its path (ModelDeformer), each loads it once
+    runs = {}
+    for workers in ("1", "2"):
+        out = tmp_path / f"w{workers}"
+        code, stdout, _ = _cli(["amplify", "synthetic:vases:3", "-o", str(out),
+                                "--variations", "3", "--method", "model", "--model",
+                                str(run_dir), "--workers", workers, "--json"], capsys)
+        assert code == 0
+        assert json.loads(stdout)["items"] == 3
+        runs[workers] = json.loads((out / "manifest.json").read_text())["items"]
+    for a, b in zip(runs["1"], runs["2"]):
+        assert a["method"] == "model" and a["status"] in ("ok", "rejected")
+        assert a["cd"] == pytest.approx(b["cd"], rel=1e-9) and a["cd"] > 0
+        V1 = io.load_mesh(tmp_path / "w1" / ("variations" if a["status"] == "ok"
+                                              else "rejected") / a["output"])[0]
+        V2 = io.load_mesh(tmp_path / "w2" / ("variations" if b["status"] == "ok"
+                                              else "rejected") / b["output"])[0]
+        np.testing.assert_allclose(V1, V2, rtol=0, atol=1e-9)
+    code, _, err = _cli(["amplify", "synthetic:vases:3", "-o", str(tmp_path / "x"),
+                         "--variations", "1", "--method", "model"], capsys)
+    assert code == 2 and "--model" in err

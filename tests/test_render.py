@@ -8,7 +8,7 @@ from builders import EXAMPLE, ROOT
 from matplotlib.image import imread
 
 from cagekit.cage import unique_edges
-from cagekit.render import MAX_FACES, render_meshes
+from cagekit.render import MAX_FACES, render_grid, render_meshes
 
 
 def read_obj(path):
@@ -232,3 +232,14 @@ def test_example_script_reproduces_the_files(tmp_path):
         assert V.shape == V_ref.shape, name
         extent = np.ptp(V_ref, axis=0).max()
         assert np.abs(V - V_ref).max() <= 1e-9 * extent, name
+
+
+def test_grid_places_rows_side_by_side(tmp_path):
+    # five rows of two shapes, two to a line: three lines, the last half white
+    out = tmp_path / "grid.png"
+    render_grid(out, [[octahedron(), octahedron(2.0)]] * 5, size=(100, 120), columns=2,
+                captions=["first line\nsecond line"] * 5)
+    img = image(out)
+    assert img.shape[:2] == (3 * 120, 2 * 2 * 100)
+    assert (img[2 * 120:, 2 * 100:] == 1.0).all()  # nothing where the sixth row would be
+    assert (img[2 * 120:, :2 * 100] < 1.0).any()  # the fifth row is drawn
