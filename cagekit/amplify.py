@@ -29,8 +29,9 @@ from cagekit.collection import Shape, find_shapes, load_shape_of
 from cagekit.errors import InputError
 from cagekit.files import atomic_output, one_line, read_text
 
-__all__ = ["COLUMNS", "MAX_CD", "MAX_NONAFFINITY", "METHODS", "Item", "amplify",
-           "contact_sheet", "deform_item", "plan_pairs"]
+__all__ = ["COLUMNS", "MAX_CD", "MAX_NONAFFINITY", "METHODS", "SHEET_COLUMNS", "Item",
+           "amplify", "contact_sheet", "deform_item", "plan_pairs", "prepare_worker",
+           "process_pool"]
 
 METHODS = ("cage", "scale", "model")
 #: a variation of a source of two or more parts whose worst part is farther than this
