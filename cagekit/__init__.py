@@ -25,7 +25,8 @@ __version__ = "0.1.0"
 #: public name -> the module that defines it
 _EXPORTS = {
     "bind": "cagekit.coords", "CageBinding": "cagekit.coords",
-    "mean_value_coordinates": "cagekit.coords",
+    "mean_value_coordinates": "cagekit.coords", "GreenBinding": "cagekit.coords",
+    "green_coordinates": "cagekit.coords",
     "cage_encloses": "cagekit.cage", "check_cage": "cagekit.cage",
     "winding_numbers": "cagekit.cage",
     "cotangent_laplacian": "cagekit.geometry", "normalize": "cagekit.frame",

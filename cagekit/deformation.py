@@ -54,6 +54,9 @@ __all__ = ["CageEnergy", "CageProblem", "CageSolution", "DeformResult", "DEFAULT
            "METHODS", "deform", "solve"]
 
 METHODS = ("cage", "scale", "nricp")
+#: coordinates the energy takes: linear in the cage (Green coordinates' normals are not;
+#: their gradients are issue 19's next step)
+COORDS = ("mvc",)
 TARGET_KINDS = ("full", "partial")
 #: weight of the part-affinity term (:func:`cagekit.losses.part_affinity_loss`) on sources
 #: of two or more parts (connected components of 30 vertices or more); chosen on real
@@ -614,6 +617,8 @@ def deform(source, target, cage=None, *, method: str = "cage", symmetry: str | N
         raise InputError("initial_cage applies to method cage only")
     if initial_cage is not None and cage is None:
         raise InputError("initial_cage needs the cage it deforms (cage=...)")
+    if coords not in COORDS:
+        raise InputError(f"deform takes coords {', '.join(COORDS)}, got {coords!r}")
     _weights(weights, landmarks, symmetry, reference)  # refuse bad weights before any work
     _check_counts({"samples": samples, "shape_points": shape_points,
                    "max_evaluations": max_evaluations})

@@ -42,12 +42,19 @@ def test_every_commands_help_imports_none_of_the_heavy_libraries():
 
 def test_the_command_lines_choices_are_the_librarys():
     import cagekit
-    from cagekit.cli.common import COORDINATE_METHODS, FIT_METHODS, TEMPLATE_FACES
+    from cagekit.cli.common import (
+        COORDINATE_METHODS,
+        DEFORM_COORDINATE_METHODS,
+        FIT_METHODS,
+        TEMPLATE_FACES,
+    )
     from cagekit.coords.binding import METHODS
+    from cagekit.deformation import COORDS
     from cagekit.fitting import METHODS as FITTING
     from cagekit.fitting import TEMPLATE_FACES as FITTING_TEMPLATE_FACES
 
     assert COORDINATE_METHODS == METHODS and FIT_METHODS == FITTING
+    assert DEFORM_COORDINATE_METHODS == COORDS
     assert TEMPLATE_FACES == FITTING_TEMPLATE_FACES
     assert sorted(dir(cagekit)) == sorted(cagekit.__all__)
     for name in cagekit.__all__:  # every lazily exported name resolves

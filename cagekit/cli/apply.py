@@ -26,7 +26,9 @@ from cagekit.errors import InputError
 @click.option("-o", "--output", "out", required=True, type=click.Path(dir_okay=False),
               help="Deformed shape to write (mesh or point cloud, format from extension).")
 @click.option("--coords", type=click.Choice(list(COORDINATE_METHODS)), default="mvc",
-              show_default=True, help="Cage coordinates (mean value coordinates).")
+              show_default=True,
+              help="Cage coordinates: mean value (affine-invariant) or Green (exact for "
+                   "similarities; details keep their proportions under stretch).")
 @json_option
 @debug_option
 @click.pass_context

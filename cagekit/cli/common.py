@@ -38,7 +38,8 @@ import click
 from cagekit.errors import InputError
 from cagekit.progress import bar_callback, progress_bar, progress_enabled
 
-__all__ = ["BIND_CHUNK", "COORDINATE_METHODS", "FIT_METHODS", "TEMPLATE_FACES", "Command",
+__all__ = ["BIND_CHUNK", "COORDINATE_METHODS", "DEFORM_COORDINATE_METHODS", "FIT_METHODS",
+           "TEMPLATE_FACES", "Command",
            "FiniteFloatRange", "Group", "Interrupted", "OneLineErrors", "bar_callback",
            "bind_with_progress", "check_output", "debug_option", "emit_json", "json_option",
            "one_line", "preview_up_option", "progress_bar", "progress_enabled", "same_file",
@@ -50,7 +51,9 @@ BIND_CHUNK = 20_000
 #: choices of the library (:data:`cagekit.coords.binding.METHODS`,
 #: :data:`cagekit.fitting.METHODS`), listed here so that starting the command line imports
 #: neither numba nor libigl (tests check that they match)
-COORDINATE_METHODS = ("mvc",)
+COORDINATE_METHODS = ("mvc", "green")
+#: the coordinates ``cagekit deform``'s energy takes (:data:`cagekit.deformation.COORDS`)
+DEFORM_COORDINATE_METHODS = ("mvc",)
 FIT_METHODS = ("wrap", "template")
 TEMPLATE_FACES = 80
 

@@ -8,7 +8,7 @@ import os
 import click
 
 from cagekit.cli.common import (
-    COORDINATE_METHODS,
+    DEFORM_COORDINATE_METHODS,
     bar_callback,
     check_output,
     debug_option,
@@ -135,8 +135,9 @@ def _load_landmark_pair(src_path, tgt_path):
               help="partial: TARGET is a scan seen from one side (the alignment pulls every "
                    "scanned point onto SOURCE, SOURCE onto the scan at a tenth of the "
                    "weight, so SOURCE's unseen side is not squashed).")
-@click.option("--coords", type=click.Choice(list(COORDINATE_METHODS)), default="mvc",
-              show_default=True, help="Cage coordinates.")
+@click.option("--coords", type=click.Choice(list(DEFORM_COORDINATE_METHODS)), default="mvc",
+              show_default=True, help="Cage coordinates (the energy takes mean value "
+                                      "coordinates only today).")
 @click.option("--preview", type=click.Path(dir_okay=False), default=None,
               help="Draw source, target and result side by side (cages as wireframes) "
                    "into this PNG.")

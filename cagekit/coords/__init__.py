@@ -9,9 +9,11 @@ from numba.core.errors import NumbaWarning
 warnings.filterwarnings("ignore", message="The TBB threading layer requires TBB",
                         category=NumbaWarning)
 
-from cagekit.coords.binding import METHODS, CageBinding, bind  # noqa: E402
+from cagekit.coords.binding import METHODS, CageBinding, GreenBinding, bind  # noqa: E402
+from cagekit.coords.green import green_coordinates  # noqa: E402
 from cagekit.coords.mvc import mean_value_coordinates  # noqa: E402
 from cagekit.coords.textbook import mean_value_coordinates_textbook  # noqa: E402
 
-__all__ = ["bind", "CageBinding", "METHODS", "mean_value_coordinates",
+__all__ = ["bind", "CageBinding", "GreenBinding", "METHODS", "green_coordinates",
+           "mean_value_coordinates",
            "mean_value_coordinates_textbook"]

@@ -10,9 +10,9 @@ import numpy as np
 from cagekit.cage import cage_encloses, check_cage, distance_in_diagonals, winding_numbers
 from cagekit.errors import InputError, OutsideCageWarning
 
-__all__ = ["CageBinding", "bind", "warn_outside", "METHODS"]
+__all__ = ["CageBinding", "GreenBinding", "bind", "warn_outside", "METHODS"]
 
-METHODS = ("mvc",)
+METHODS = ("mvc", "green")
 
 
 @numba.njit(parallel=True, cache=True)
@@ -86,13 +86,8 @@ class CageBinding:
         >>> (b.deform(2 * v).round(12) + 0.0).tolist()  # + 0.0: no negative zero
         [[1.0, 0.0, 0.0]]
         """
-        new = np.asarray(new_cage_v, dtype=np.float64)
-        if new.shape != self.cage_v.shape:
-            raise InputError(f"deformed cage has shape {new.shape}, the bound cage has "
-                             f"{self.cage_v.shape}: vertex counts must match")
-        if not np.all(np.isfinite(new)):
-            raise InputError("deformed cage has NaN or inf coordinates")
-        out = _weights_times_vertices(self.weights, np.ascontiguousarray(new))
+        new = _checked_cage(new_cage_v, self.cage_v.shape)
+        out = _weights_times_vertices(self.weights, new)
         if not np.all(np.isfinite(out)):
             raise InputError("the deformed positions overflow float64 (cage or points too "
                              "large)")
@@ -103,7 +98,91 @@ class CageBinding:
         return cage_encloses(points, self.cage_v, self.cage_f)
 
 
-def bind(points, cage_v, cage_f, method: str = "mvc", *, check: bool = True) -> CageBinding:
+class GreenBinding:
+    """Points written in Green coordinates of a cage (:mod:`cagekit.coords.green`).
+
+    Attributes
+    ----------
+    phi : (n, k) float64
+        Vertex coordinates; rows sum to one.
+    psi : (n, m) float64
+        Face coordinates (in the cage's units).
+    cage_v : (k, 3) float64
+        The cage the points were bound to.
+    cage_f : (m, 3) int64
+        Its faces, oriented outward.
+    method : str
+        ``"green"``.
+    """
+
+    def __init__(self, phi: np.ndarray, psi: np.ndarray, cage_v: np.ndarray,
+                 cage_f: np.ndarray):
+        self.phi, self.psi = phi, psi
+        self.cage_v, self.cage_f = cage_v, cage_f
+        self.method = "green"
+
+    @property
+    def n_points(self) -> int:
+        """Number of bound points."""
+        return self.phi.shape[0]
+
+    def deform(self, new_cage_v) -> np.ndarray:
+        """Positions of the bound points for moved cage vertices.
+
+        ``phi @ new_cage_v + psi @ (s * n')``, with ``n'`` the moved faces' unit normals
+        and ``s`` their stretch factors (:func:`cagekit.coords.green.stretch_factors`).
+        Raises :class:`cagekit.InputError` as :meth:`CageBinding.deform` does, and for a
+        moved cage with a face of zero area (its normal is undefined).
+
+        Parameters
+        ----------
+        new_cage_v : (k, 3) array_like of float
+
+        Returns
+        -------
+        (n, 3) float64
+
+        Examples
+        --------
+        >>> from cagekit.shapes import box_cage
+        >>> v, f = box_cage()
+        >>> b = bind([[0.5, 0.0, 0.0]], v, f, method="green")
+        >>> (b.deform(2 * v + 1).round(12) + 0.0).tolist()  # similarities are exact
+        [[2.0, 1.0, 1.0]]
+        """
+        from cagekit.coords.green import stretch_factors, unit_normals
+
+        new = _checked_cage(new_cage_v, self.cage_v.shape)
+        normals, twice_area = unit_normals(new, self.cage_f)
+        if not np.all(twice_area > 0):
+            raise InputError("the deformed cage has a face of zero area: Green coordinates "
+                             "need its normal")
+        scaled = normals * stretch_factors(self.cage_v, new, self.cage_f)[:, None]
+        out = (_weights_times_vertices(self.phi, new)
+               + _weights_times_vertices(self.psi, np.ascontiguousarray(scaled)))
+        if not np.all(np.isfinite(out)):
+            raise InputError("the deformed positions overflow float64 (cage or points too "
+                             "large)")
+        return out
+
+    def encloses(self, points) -> bool:
+        """Whether the given points (usually the bound ones) all lie inside the cage."""
+        return cage_encloses(points, self.cage_v, self.cage_f)
+
+
+def _checked_cage(new_cage_v, shape) -> np.ndarray:
+    """A moved cage as a contiguous float64 array of the bound cage's shape, all finite."""
+    new = np.asarray(new_cage_v, dtype=np.float64)
+    if new.shape != shape:
+        raise InputError(f"deformed cage has shape {new.shape}, the bound cage has "
+                         f"{shape}: vertex counts must match")
+    if not np.all(np.isfinite(new)):
+        raise InputError("deformed cage has NaN or inf coordinates")
+    return np.ascontiguousarray(new)
+
+
+def bind(points, cage_v, cage_f, method: str = "mvc", *,
+         check: bool = True) -> CageBinding | GreenBinding:
     """Compute the coordinates of points with respect to a cage.
 
     Parameters
@@ -118,9 +197,12 @@ def bind(points, cage_v, cage_f, method: str = "mvc", *, check: bool = True) -> 
         Cage faces: closed and 2-manifold. A consistently inward cage is flipped; an open,
         non-manifold or inconsistently oriented one raises :class:`cagekit.CageError`, and
         so does (with ``check``) one that intersects itself.
-    method : {"mvc"}, default "mvc"
-        Mean value coordinates (Ju, Schaefer & Warren 2005). Green coordinates are not
-        available yet.
+    method : {"mvc", "green"}, default "mvc"
+        Mean value coordinates (Ju, Schaefer & Warren 2005): a :class:`CageBinding`,
+        affine-invariant. Green coordinates (Lipman, Levin & Cohen-Or 2008): a
+        :class:`GreenBinding`, exact for similarities and quasi-conformal otherwise
+        (details keep their proportions under stretch); points outside the cage take the
+        extension across their closest face (:mod:`cagekit.coords.green`).
     check : bool, default True
         Run the exact self-intersection test on the cage (about a millisecond per 100
         faces). False skips it, for speed, when the cage is known to be free of it (a
@@ -145,6 +227,10 @@ def bind(points, cage_v, cage_f, method: str = "mvc", *, check: bool = True) -> 
         raise InputError(f"unknown coordinates {method!r}; available: {', '.join(METHODS)}")
     v = np.ascontiguousarray(cage_v, dtype=np.float64)
     faces = check_cage(v, cage_f, intersections=check)
+    if method == "green":
+        from cagekit.coords.green import green_coordinates
+
+        return GreenBinding(*green_coordinates(points, v, faces), v, faces)
     weights = mean_value_coordinates(points, v, faces, check=False)
     return CageBinding(weights, v, faces, method)
 
