@@ -51,130 +51,171 @@ _FOUR_PI = 4.0 * np.pi
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _edge_log(dpx, dpy, dpz, dqx, dqy, dqz, length):
-    """``integral over the edge p->q of 1 / r``, seen from the origin, without cancellation;
-    inf when the origin lies on the edge."""
-    rp = np.sqrt(dpx * dpx + dpy * dpy + dpz * dpz)
-    rq = np.sqrt(dqx * dqx + dqy * dqy + dqz * dqz)
-    dot = dpx * dqx + dpy * dqy + dpz * dqz
-    if dot >= 0.0:
-        half = rp * rq + dot
-    else:
-        cx = dpy * dqz - dpz * dqy
-        cy = dpz * dqx - dpx * dqz
-        cz = dpx * dqy - dpy * dqx
-        half = (cx * cx + cy * cy + cz * cz) / (rp * rq - dot)
-    s = rp + rq + length
-    return np.log(s * s / (2.0 * half))
-
-
-@numba.njit(cache=True, error_model="numpy", inline="always")
-def _angle(ax, ay, az, bx, by, bz):
-    """The angle between two vectors, accurate at every angle (``atan2`` of the sine
-    and the cosine)."""
+def _corner(ax, ay, az, bx, by, bz):
+    """Cosine and sine of the angle between two unit vectors (the sine from the cross
+    product's length: accurate at every angle)."""
     cx = ay * bz - az * by
     cy = az * bx - ax * bz
     cz = ax * by - ay * bx
-    return np.arctan2(np.sqrt(cx * cx + cy * cy + cz * cz), ax * bx + ay * by + az * bz)
+    return ax * bx + ay * by + az * bz, np.sqrt(cx * cx + cy * cy + cz * cz)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _excess(c0, s0, c1, s1, c2, s2, foot_inside):
+    """``|Omega| = 2 pi - (a_0 + a_1 + a_2)`` from the corners' cosines and sines.
+
+    One ``atan2``: the argument of the product of the ``cos a + i sin a`` is the angle sum
+    (in [0, 2 pi]) modulo 2 pi, ambiguous only near 0, between ``|Omega|`` near 0 and
+    near 2 pi. Near 2 pi needs the point's foot inside the face (from outside it the face
+    fills less than a hemisphere); only then are the three angles summed one by one.
+    """
+    re = c0 * c1 - s0 * s1
+    im = c0 * s1 + s0 * c1
+    re, im = re * c2 - im * s2, re * s2 + im * c2
+    arg = np.arctan2(im, re)
+    if abs(arg) >= 0.5 * np.pi:
+        return 2.0 * np.pi - arg if arg > 0.0 else -arg
+    if not foot_inside:
+        return abs(arg)
+    return 2.0 * np.pi - np.arctan2(s0, c0) - np.arctan2(s1, c1) - np.arctan2(s2, c2)
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _solid_angle(c01x, c01y, c01z, c12x, c12y, c12z, c20x, c20y, c20z, h):
-    """Signed solid angle of a face from the origin by the spherical excess, from the
-    normals ``d_p x d_q`` of the planes through the origin and each edge: the face's
-    across an edge sees the same plane's normal negated, bit for bit, so the part that
-    is ill-conditioned near the edge cancels between the two faces (the one-``atan2``
-    formula loses ``eps / distance`` there)."""
-    n01 = np.sqrt(c01x * c01x + c01y * c01y + c01z * c01z)
-    n12 = np.sqrt(c12x * c12x + c12y * c12y + c12z * c12z)
-    n20 = np.sqrt(c20x * c20x + c20y * c20y + c20z * c20z)
-    # a plane through the origin and an edge is undefined only on that edge's line
-    a0 = _angle(c20x / n20, c20y / n20, c20z / n20, c01x / n01, c01y / n01, c01z / n01)
-    a1 = _angle(c01x / n01, c01y / n01, c01z / n01, c12x / n12, c12y / n12, c12z / n12)
-    a2 = _angle(c12x / n12, c12y / n12, c12z / n12, c20x / n20, c20y / n20, c20z / n20)
-    excess = 2.0 * np.pi - a0 - a1 - a2
-    return -excess if h < 0.0 else excess
+def _green_row(x, cage_v, faces, edges, face_edges, face_signs, normals, face_off, edge_m,
+               edge_off, grads, inv_twice, edge_len, D, R, N, I, phi, psi):
+    """Raw Green coordinates of one point into ``phi`` (k,) and ``psi`` (m,); returns the
+    point's distance to the cage, or -1 when it is too close for the integrals (a
+    non-finite value).
 
-
-@numba.njit(cache=True, error_model="numpy")
-def _green_row(x, cage_v, faces, normals, twice_area, edge_len, phi, psi):
-    """Raw Green coordinates of one point into ``phi`` (k,) and ``psi`` (m,); False when
-    the point is too close to the cage for the integrals (a non-finite value)."""
-    phi[:] = 0.0
+    Per vertex: ``d = v - x`` and its length; per undirected edge: the unit normal of
+    the plane through ``x`` and the edge (``d_p x d_q``, negated bit for bit in the face
+    across) and ``I_e``; per face: the solid angle by the spherical excess of those
+    normals, the foot's barycentrics and the two potentials. ``D, R, N, I`` are scratch.
+    """
+    k = cage_v.shape[0]
+    nearest = np.inf
+    for v in range(k):
+        D[v, 0] = cage_v[v, 0] - x[0]
+        D[v, 1] = cage_v[v, 1] - x[1]
+        D[v, 2] = cage_v[v, 2] - x[2]
+        R[v] = np.sqrt(D[v, 0] ** 2 + D[v, 1] ** 2 + D[v, 2] ** 2)
+        nearest = min(nearest, R[v])
+    for e in range(edges.shape[0]):
+        p = edges[e, 0]
+        q = edges[e, 1]
+        cx = D[p, 1] * D[q, 2] - D[p, 2] * D[q, 1]
+        cy = D[p, 2] * D[q, 0] - D[p, 0] * D[q, 2]
+        cz = D[p, 0] * D[q, 1] - D[p, 1] * D[q, 0]
+        cross2 = cx * cx + cy * cy + cz * cz
+        norm = np.sqrt(cross2)
+        # N holds the unnormalised cross product (barycentrics) and its unit version
+        N[e, 0] = cx
+        N[e, 1] = cy
+        N[e, 2] = cz
+        N[e, 3] = cx / norm
+        N[e, 4] = cy / norm
+        N[e, 5] = cz / norm
+        # integral of 1/r along the edge: log((R_p + R_q + L)^2 / (2 (R_p R_q + d_p.d_q)))
+        dot = D[p, 0] * D[q, 0] + D[p, 1] * D[q, 1] + D[p, 2] * D[q, 2]
+        # distance to the edge where the foot falls on it: |d_p x d_q| / L
+        if R[p] * R[p] - dot >= 0.0 and R[q] * R[q] - dot >= 0.0:
+            nearest = min(nearest, norm / edge_len[e])
+        rr = R[p] * R[q]
+        half = rr + dot if dot >= 0.0 else cross2 / (rr - dot)
+        total = R[p] + R[q] + edge_len[e]
+        I[e] = np.log(total * total / (2.0 * half))
     m = faces.shape[0]
-    d = np.empty((3, 3))
     for j in range(m):
-        for c in range(3):
-            v = faces[j, c]
-            d[c, 0] = cage_v[v, 0] - x[0]
-            d[c, 1] = cage_v[v, 1] - x[1]
-            d[c, 2] = cage_v[v, 2] - x[2]
         nx, ny, nz = normals[j, 0], normals[j, 1], normals[j, 2]
-        h = d[0, 0] * nx + d[0, 1] * ny + d[0, 2] * nz
-        # d1 x d2, d2 x d0, d0 x d1: barycentrics of the foot (dotted with n) and solid angle
-        c12x = d[1, 1] * d[2, 2] - d[1, 2] * d[2, 1]
-        c12y = d[1, 2] * d[2, 0] - d[1, 0] * d[2, 2]
-        c12z = d[1, 0] * d[2, 1] - d[1, 1] * d[2, 0]
-        c20x = d[2, 1] * d[0, 2] - d[2, 2] * d[0, 1]
-        c20y = d[2, 2] * d[0, 0] - d[2, 0] * d[0, 2]
-        c20z = d[2, 0] * d[0, 1] - d[2, 1] * d[0, 0]
-        c01x = d[0, 1] * d[1, 2] - d[0, 2] * d[1, 1]
-        c01y = d[0, 2] * d[1, 0] - d[0, 0] * d[1, 2]
-        c01z = d[0, 0] * d[1, 1] - d[0, 1] * d[1, 0]
-        omega = _solid_angle(c01x, c01y, c01z, c12x, c12y, c12z, c20x, c20y, c20z, h)
-        inv2a = 1.0 / twice_area[j]
-        gam0 = (c12x * nx + c12y * ny + c12z * nz) * inv2a
-        gam1 = (c20x * nx + c20y * ny + c20z * nz) * inv2a
-        gam2 = (c01x * nx + c01y * ny + c01z * nz) * inv2a
-        # edges 0->1, 1->2, 2->0: sum of m_e I_e and of d_e I_e
+        h = face_off[j] - (x[0] * nx + x[1] * ny + x[2] * nz)
+        e0, e1, e2 = face_edges[j, 0], face_edges[j, 1], face_edges[j, 2]
+        s0, s1, s2 = face_signs[j, 0], face_signs[j, 1], face_signs[j, 2]
+        # the spherical triangle's angles, between the planes of consecutive edges
+        c0, sn0 = _corner(s2 * N[e2, 3], s2 * N[e2, 4], s2 * N[e2, 5],
+                          s0 * N[e0, 3], s0 * N[e0, 4], s0 * N[e0, 5])
+        c1, sn1 = _corner(s0 * N[e0, 3], s0 * N[e0, 4], s0 * N[e0, 5],
+                          s1 * N[e1, 3], s1 * N[e1, 4], s1 * N[e1, 5])
+        c2, sn2 = _corner(s1 * N[e1, 3], s1 * N[e1, 4], s1 * N[e1, 5],
+                          s2 * N[e2, 3], s2 * N[e2, 4], s2 * N[e2, 5])
+        # the foot's barycentrics: (d1 x d2) . n, (d2 x d0) . n, (d0 x d1) . n over 2A
+        gam0 = s1 * (N[e1, 0] * nx + N[e1, 1] * ny + N[e1, 2] * nz) * inv_twice[j]
+        gam1 = s2 * (N[e2, 0] * nx + N[e2, 1] * ny + N[e2, 2] * nz) * inv_twice[j]
+        gam2 = s0 * (N[e0, 0] * nx + N[e0, 1] * ny + N[e0, 2] * nz) * inv_twice[j]
+        # generous (a sliver's barycentrics are rounded at ~eps / its area): a false
+        # "inside" only costs the three-atan2 sum
+        slack = -1e-3 - 1e-14 * inv_twice[j]
+        foot_inside = gam0 >= slack and gam1 >= slack and gam2 >= slack
+        if gam0 >= 0.0 and gam1 >= 0.0 and gam2 >= 0.0:
+            nearest = min(nearest, abs(h))
+        omega = _excess(c0, sn0, c1, sn1, c2, sn2, foot_inside)
+        if h < 0.0:
+            omega = -omega
         vx = 0.0
         vy = 0.0
         vz = 0.0
         single = 0.0
-        for e in range(3):
-            p = e
-            q = (e + 1) % 3
-            length = edge_len[j, e]
-            ie = _edge_log(d[p, 0], d[p, 1], d[p, 2], d[q, 0], d[q, 1], d[q, 2], length)
-            tx = (d[q, 0] - d[p, 0]) / length
-            ty = (d[q, 1] - d[p, 1]) / length
-            tz = (d[q, 2] - d[p, 2]) / length
-            mx = ty * nz - tz * ny  # t x n: the edge's outward in-plane normal
-            my = tz * nx - tx * nz
-            mz = tx * ny - ty * nx
-            de = d[p, 0] * mx + d[p, 1] * my + d[p, 2] * mz
+        for c in range(3):
+            ie = I[face_edges[j, c]]
+            mx, my, mz = edge_m[j, c, 0], edge_m[j, c, 1], edge_m[j, c, 2]
             vx += mx * ie
             vy += my * ie
             vz += mz * ie
-            single += de * ie
+            single += (edge_off[j, c] - (x[0] * mx + x[1] * my + x[2] * mz)) * ie
         value = (single - h * omega) / _FOUR_PI
         if not np.isfinite(value):
-            return False
+            return -1.0
         psi[j] = value
-        # the hat functions' gradients g_a = n x (c - b) / 2A, for a = 0, 1, 2
         for a in range(3):
-            b = (a + 1) % 3
-            c = (a + 2) % 3
-            ex = d[c, 0] - d[b, 0]
-            ey = d[c, 1] - d[b, 1]
-            ez = d[c, 2] - d[b, 2]
-            gx = (ny * ez - nz * ey) * inv2a
-            gy = (nz * ex - nx * ez) * inv2a
-            gz = (nx * ey - ny * ex) * inv2a
             gam = gam0 if a == 0 else (gam1 if a == 1 else gam2)
-            term = (gam * omega - h * (gx * vx + gy * vy + gz * vz)) / _FOUR_PI
+            term = (gam * omega - h * (grads[j, a, 0] * vx + grads[j, a, 1] * vy
+                                       + grads[j, a, 2] * vz)) / _FOUR_PI
             if not np.isfinite(term):
-                return False
+                return -1.0
             phi[faces[j, a]] += term
-    return True
+    return nearest
 
 
 @numba.njit(parallel=True, cache=True, error_model="numpy")
-def _green_kernel(points, cage_v, faces, normals, twice_area, edge_len, phi, psi, ok):
-    """:func:`_green_row` for every point, in parallel."""
-    for i in numba.prange(points.shape[0]):
-        ok[i] = _green_row(points[i], cage_v, faces, normals, twice_area, edge_len, phi[i],
-                           psi[i])
+def _green_kernel(points, cage_v, faces, edges, face_edges, face_signs, normals, face_off,
+                  edge_m, edge_off, grads, inv_twice, edge_len, n_chunks, phi, psi, dist):
+    """:func:`_green_row` for every point, chunks of points in parallel (scratch once per
+    chunk: O(k + e) memory); each point's distance to the cage into ``dist``."""
+    n = points.shape[0]
+    k = cage_v.shape[0]
+    ne = edges.shape[0]
+    n_chunks = max(1, min(n, n_chunks))
+    for chunk in numba.prange(n_chunks):
+        D = np.empty((k, 3))
+        R = np.empty(k)
+        N = np.empty((ne, 6))
+        I = np.empty(ne)
+        for i in range(chunk * n // n_chunks, (chunk + 1) * n // n_chunks):
+            phi[i, :] = 0.0
+            dist[i] = _green_row(points[i], cage_v, faces, edges, face_edges, face_signs,
+                               normals, face_off, edge_m, edge_off, grads, inv_twice,
+                               edge_len, D, R, N, I, phi[i], psi[i])
+
+
+def _face_constants(cv, faces, normals, twice):
+    """What does not depend on the point: the faces' offsets along their normals, their
+    edges' outward in-plane normals and offsets along them, the hat functions' in-plane
+    gradients ``n x (v_c - v_b) / 2A``, and the unique edges' lengths."""
+    from cagekit.cage import cage_topology
+
+    topo = cage_topology(faces)
+    corners = cv[faces]  # (m, 3, 3)
+    ahead = np.roll(corners, -1, axis=1)  # each directed edge's end
+    tangent = ahead - corners
+    tangent /= np.linalg.norm(tangent, axis=2, keepdims=True)
+    edge_m = np.cross(tangent, normals[:, None, :])
+    edge_off = np.einsum("fci,fci->fc", corners, edge_m)
+    face_off = np.einsum("fi,fi->f", corners[:, 0], normals)
+    opposite = np.roll(corners, -2, axis=1) - np.roll(corners, -1, axis=1)  # v_c - v_b
+    grads = np.cross(normals[:, None, :], opposite) / twice[:, None, None]
+    edge_len = np.linalg.norm(cv[topo.edges[:, 1]] - cv[topo.edges[:, 0]], axis=1)
+    return (topo.edges, topo.face_edges, topo.face_edge_signs, np.ascontiguousarray(face_off),
+            np.ascontiguousarray(edge_m), np.ascontiguousarray(edge_off),
+            np.ascontiguousarray(grads), np.ascontiguousarray(1.0 / twice), edge_len)
 
 
 def unit_normals(cage_v, cage_f) -> tuple[np.ndarray, np.ndarray]:
@@ -295,52 +336,47 @@ def green_coordinates(points, cage_v, cage_f) -> tuple[np.ndarray, np.ndarray]:
     normals, twice = unit_normals(cv, faces)
     if not np.all(twice > 1e-14):
         raise InputError("Green coordinates need cage faces of positive area")
-    edge_len = np.linalg.norm(cv[np.roll(faces, -1, axis=1)] - cv[faces], axis=2)
+    constants = _face_constants(cv, faces, normals, twice)
+    chunks = 16 * numba.get_num_threads()
     n, k, m = len(px), len(cv), len(faces)
     phi, psi = np.empty((n, k)), np.empty((n, m))
     if not n:
         return phi, psi
-    import igl
-
-    from cagekit.cage import winding_numbers
-
-    sd = igl.signed_distance(px, cv, faces,
-                             igl.SignedDistanceType.SIGNED_DISTANCE_TYPE_PSEUDONORMAL)
-    distance, closest, foot, pseudo = np.abs(sd[0]), sd[1], sd[2], sd[3]
-    inset = distance < SNAP
-    outside = winding_numbers(px, cv, faces) < 0.5
-    query = px.copy()
-    query[inset] = _moved_inside(foot[inset], pseudo[inset])
-    ok = np.empty(n, dtype=np.bool_)
-    _green_kernel(query, cv, faces, normals, twice, edge_len, phi, psi, ok)
-    if not ok.all():
-        # a point the distance test let through: move it inside too, once
-        bad = np.flatnonzero(~ok)
-        query[bad] = _moved_inside(foot[bad], pseudo[bad])
-        ok_bad = np.empty(len(bad), dtype=np.bool_)
-        phi_bad, psi_bad = np.empty((len(bad), k)), np.empty((len(bad), m))
-        _green_kernel(np.ascontiguousarray(query[bad]), cv, faces, normals, twice, edge_len,
-                      phi_bad, psi_bad, ok_bad)
-        if not ok_bad.all():
+    dist = np.empty(n)
+    _green_kernel(px, cv, faces, *constants[:3], normals, *constants[3:], chunks, phi, psi,
+                  dist)
+    # the solid angles sum to 4 pi inside and to 0 outside (the kernel's own winding number)
+    outside = phi.sum(axis=1) < 0.5
+    near = np.flatnonzero(~(dist >= SNAP))  # too close, or not finite (dist -1)
+    if len(near):
+        query = np.ascontiguousarray(_moved_inside(px[near], cv, faces))
+        dist_near = np.empty(len(near))
+        phi_near, psi_near = np.empty((len(near), k)), np.empty((len(near), m))
+        _green_kernel(query, cv, faces, *constants[:3], normals, *constants[3:], chunks,
+                      phi_near, psi_near, dist_near)
+        if not np.all(dist_near >= 0):
             raise FloatingPointError("Green coordinates are not finite at "
-                                     f"{int((~ok_bad).sum())} point(s)")
-        phi[bad], psi[bad] = phi_bad, psi_bad
-    outside &= ~inset
+                                     f"{int((dist_near < 0).sum())} point(s)")
+        phi[near], psi[near] = phi_near, psi_near
+        outside[near] = False
     if outside.any():
-        exit_faces = _exit_faces(px[outside], closest[outside], distance[outside], cv, faces,
-                                 twice)
-        _extend_outside(px[outside], exit_faces, cv, faces, normals,
-                        np.flatnonzero(outside), phi, psi)
+        rows = np.flatnonzero(outside)
+        _extend_outside(px[rows], _exit_faces(px[rows], cv, faces, twice), cv, faces,
+                        normals, rows, phi, psi)
     psi *= diag
     return phi, psi
 
 
-def _moved_inside(foot, pseudo) -> np.ndarray:
-    """Closest cage points moved :data:`INSET` inside, along the angle-weighted
-    pseudo-normals there."""
+def _moved_inside(points, cv, faces) -> np.ndarray:
+    """Points on or near the cage moved to :data:`INSET` inside it, along the
+    angle-weighted pseudo-normal of their closest cage point."""
+    import igl
+
+    result = igl.signed_distance(np.ascontiguousarray(points), cv, faces,
+                                 igl.SignedDistanceType.SIGNED_DISTANCE_TYPE_PSEUDONORMAL)
+    foot, pseudo = result[2], result[3]
     norms = np.linalg.norm(pseudo, axis=1, keepdims=True)
-    unit = pseudo / np.where(norms > 0, norms, 1.0)
-    return foot - INSET * unit
+    return foot - INSET * pseudo / np.where(norms > 0, norms, 1.0)
 
 
 #: a face whose twice-area is below this times its longest edge squared is a sliver: as
@@ -348,10 +384,15 @@ def _moved_inside(foot, pseudo) -> np.ndarray:
 SLIVER = 1e-3
 
 
-def _exit_faces(points, closest, distance, cv, faces, twice_area) -> np.ndarray:
+def _exit_faces(points, cv, faces, twice_area) -> np.ndarray:
     """Each outside point's exit face: its closest face, or, where that is a sliver and
     the closest cage point lies on its edge or corner, the best-shaped face around that
     corner that is as close (libigl breaks such ties arbitrarily)."""
+    import igl
+
+    dist2, closest = igl.point_mesh_squared_distance(np.ascontiguousarray(points), cv,
+                                                     faces)[:2]
+    distance = np.sqrt(dist2)
     edges = cv[np.roll(faces, -1, axis=1)] - cv[faces]
     longest = np.max(np.einsum("fij,fij->fi", edges, edges), axis=1)
     shape = twice_area / longest
@@ -361,8 +402,6 @@ def _exit_faces(points, closest, distance, cv, faces, twice_area) -> np.ndarray:
         ring = ring[shape[ring] >= SLIVER]
         if not len(ring):
             continue
-        import igl
-
         d2 = np.array([igl.point_mesh_squared_distance(points[i:i + 1], cv,
                                                        faces[j:j + 1])[0][0] for j in ring])
         tied = np.sqrt(d2) <= distance[i] * (1 + 1e-9) + 1e-15
