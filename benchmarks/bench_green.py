@@ -18,6 +18,7 @@ import json
 import os
 import sys
 import time
+from functools import partial
 
 import numpy as np
 
@@ -45,8 +46,8 @@ def run_case(label, n, faces):
     out = {"case": label, "points": n, "faces": len(f)}
     for method in ("mvc", "green"):
         bind(p[:64], v, f, method=method)  # load the compiled kernels
-        seconds, binding = best_of(lambda: bind(p, v, f, method=method, check=False))
-        deform_s, _ = best_of(lambda: binding.deform(moved), repeats=5)
+        seconds, binding = best_of(partial(bind, p, v, f, method=method, check=False))
+        deform_s, _ = best_of(partial(binding.deform, moved), repeats=5)
         out[method] = {"bind_s": seconds, "pairs_per_s": n * len(f) / seconds,
                        "deform_s": deform_s}
     out["bind_ratio"] = out["green"]["pairs_per_s"] / out["mvc"]["pairs_per_s"]

@@ -11,21 +11,29 @@ value coordinates are affine-invariant and shear details under stretch.
 
 The integrals are not the paper's pseudo-code (its ``GCTriInt`` takes arccosines and
 differences of nearly equal logarithms and loses digits near the cage). They are the
-boundary-element closed forms, per face: the signed solid angle (Van Oosterom &
-Strackee's ``atan2``), and per edge ``log((R_p + R_q + L) / (R_p + R_q - L))`` with the
+boundary-element closed forms: per face the signed solid angle ``Omega``, per edge ``I_e
+= log((R_p + R_q + L) / (R_p + R_q - L))`` (the integral of ``1 / r`` along it) with the
 denominator as ``2 (R_p R_q + d_p . d_q) / (R_p + R_q + L)`` and ``R_p R_q + d_p . d_q =
 |d_p x d_q|^2 / (R_p R_q - d_p . d_q)`` where the two vectors point apart, so that the
 logarithm stays exact as the point closes on the edge. Then ``psi = (sum_e d_e I_e - h
 Omega) / 4 pi`` and ``phi_a += (Gamma_a(rho) Omega - h g_a . sum_e m_e I_e) / 4 pi``
 (``h`` the point's height over the face, ``rho`` its foot, ``Gamma_a`` and ``g_a`` the
 hat function's value there and its gradient, ``m_e`` and ``d_e`` each edge's outward
-in-plane normal and the foot's distance to it).
+in-plane normal and the foot's distance to it). The solid angle is the spherical excess
+of the angles between the planes through the point and each edge (normals ``d_p x
+d_q``): the face across an edge sees the same normal negated bit for bit, so the part
+that is ill-conditioned near the edge cancels between the two faces (Van Oosterom and
+Strackee's one-``atan2`` formula loses ``eps / distance`` there); the three angles take
+one ``atan2`` as the argument of a product (:func:`_excess`). Reproduction holds to
+about ``1e-14 D`` (``D`` the cage's bounding-box diagonal) down to ``1e-11 D`` from the
+cage (docs/benchmarks.md, "Green coordinates").
 
 Points within :data:`SNAP` cage diagonals of the cage (where the integrands are singular)
 are evaluated :data:`INSET` diagonals inside it, along the angle-weighted pseudo-normal of
 their closest cage point, so reproduction there is off by at most ``INSET * D``. Points
 outside take the paper's extension across their exit face, taken to be the face closest
-to them: the raw integrals vanish outside (the coordinates sum to zero), and the point's
+to them (a sliver's tie goes to a better-shaped neighbour that is as close): the raw
+integrals vanish outside (the coordinates sum to zero), and the point's
 affine coordinates in the frame of that face (its three vertices and its normal) are
 added to the face's vertices and to its ``psi``. The map is then continuous across that
 face and reproduces outside points exactly, but it is not continuous where the closest
@@ -47,7 +55,7 @@ SNAP = 1e-12
 #: how far inside such points are evaluated (cage diagonals): reproduction's error there
 INSET = 1e-12
 
-_FOUR_PI = 4.0 * np.pi
+_INV_FOUR_PI = 1.0 / (4.0 * np.pi)
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
@@ -112,9 +120,10 @@ def _green_row(x, cage_v, faces, edges, face_edges, face_signs, normals, face_of
         N[e, 0] = cx
         N[e, 1] = cy
         N[e, 2] = cz
-        N[e, 3] = cx / norm
-        N[e, 4] = cy / norm
-        N[e, 5] = cz / norm
+        inv = 1.0 / norm
+        N[e, 3] = cx * inv
+        N[e, 4] = cy * inv
+        N[e, 5] = cz * inv
         # integral of 1/r along the edge: log((R_p + R_q + L)^2 / (2 (R_p R_q + d_p.d_q)))
         dot = D[p, 0] * D[q, 0] + D[p, 1] * D[q, 1] + D[p, 2] * D[q, 2]
         # distance to the edge where the foot falls on it: |d_p x d_q| / L
@@ -131,12 +140,13 @@ def _green_row(x, cage_v, faces, edges, face_edges, face_signs, normals, face_of
         e0, e1, e2 = face_edges[j, 0], face_edges[j, 1], face_edges[j, 2]
         s0, s1, s2 = face_signs[j, 0], face_signs[j, 1], face_signs[j, 2]
         # the spherical triangle's angles, between the planes of consecutive edges
-        c0, sn0 = _corner(s2 * N[e2, 3], s2 * N[e2, 4], s2 * N[e2, 5],
-                          s0 * N[e0, 3], s0 * N[e0, 4], s0 * N[e0, 5])
-        c1, sn1 = _corner(s0 * N[e0, 3], s0 * N[e0, 4], s0 * N[e0, 5],
-                          s1 * N[e1, 3], s1 * N[e1, 4], s1 * N[e1, 5])
-        c2, sn2 = _corner(s1 * N[e1, 3], s1 * N[e1, 4], s1 * N[e1, 5],
-                          s2 * N[e2, 3], s2 * N[e2, 4], s2 * N[e2, 5])
+        # (flipping either normal flips the cosine and leaves the sine)
+        c0, sn0 = _corner(N[e2, 3], N[e2, 4], N[e2, 5], N[e0, 3], N[e0, 4], N[e0, 5])
+        c1, sn1 = _corner(N[e0, 3], N[e0, 4], N[e0, 5], N[e1, 3], N[e1, 4], N[e1, 5])
+        c2, sn2 = _corner(N[e1, 3], N[e1, 4], N[e1, 5], N[e2, 3], N[e2, 4], N[e2, 5])
+        c0 *= s2 * s0
+        c1 *= s0 * s1
+        c2 *= s1 * s2
         # the foot's barycentrics: (d1 x d2) . n, (d2 x d0) . n, (d0 x d1) . n over 2A
         gam0 = s1 * (N[e1, 0] * nx + N[e1, 1] * ny + N[e1, 2] * nz) * inv_twice[j]
         gam1 = s2 * (N[e2, 0] * nx + N[e2, 1] * ny + N[e2, 2] * nz) * inv_twice[j]
@@ -161,18 +171,18 @@ def _green_row(x, cage_v, faces, edges, face_edges, face_signs, normals, face_of
             vy += my * ie
             vz += mz * ie
             single += (edge_off[j, c] - (x[0] * mx + x[1] * my + x[2] * mz)) * ie
-        value = (single - h * omega) / _FOUR_PI
-        if not np.isfinite(value):
-            return -1.0
-        psi[j] = value
+        psi[j] = (single - h * omega) * _INV_FOUR_PI
         for a in range(3):
             gam = gam0 if a == 0 else (gam1 if a == 1 else gam2)
-            term = (gam * omega - h * (grads[j, a, 0] * vx + grads[j, a, 1] * vy
-                                       + grads[j, a, 2] * vz)) / _FOUR_PI
-            if not np.isfinite(term):
-                return -1.0
-            phi[faces[j, a]] += term
-    return nearest
+            phi[faces[j, a]] += (gam * omega - h * (grads[j, a, 0] * vx + grads[j, a, 1] * vy
+                                                    + grads[j, a, 2] * vz)) * _INV_FOUR_PI
+    # one check at the end: a non-finite term anywhere reaches these sums
+    total = 0.0
+    for v in range(k):
+        total += phi[v]
+    for j in range(m):
+        total += psi[j]
+    return nearest if np.isfinite(total) else -1.0
 
 
 @numba.njit(parallel=True, cache=True, error_model="numpy")
