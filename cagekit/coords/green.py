@@ -43,12 +43,15 @@ commands warn with the share outside.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numba
 import numpy as np
 
 from cagekit.frame import bounding_box_diagonal
 
-__all__ = ["green_coordinates", "stretch_factors", "unit_normals", "SNAP", "INSET"]
+__all__ = ["green_coordinates", "evaluation_plan", "EvaluationPlan", "stretch_factors",
+           "unit_normals", "SNAP", "INSET"]
 
 #: points closer than this to the cage (in cage diagonals) are evaluated INSET inside it
 SNAP = 1e-12
@@ -329,6 +332,41 @@ def green_coordinates(points, cage_v, cage_f) -> tuple[np.ndarray, np.ndarray]:
     >>> bool(np.allclose(phi @ v + psi @ n, [[0.1, 0.2, -0.3]])), round(float(phi.sum()), 12)
     (True, 1.0)
     """
+    phi, psi, _ = _coordinates_and_plan(points, cage_v, cage_f)
+    return phi, psi
+
+
+@dataclass
+class EvaluationPlan:
+    """Where :func:`green_coordinates` evaluated each point, for its torch twin.
+
+    Attributes
+    ----------
+    points : (n, 3) float64
+        The points given.
+    evaluated : (n, 3) float64
+        Where the integrals were evaluated: the point, or (within :data:`SNAP` of the
+        cage) :data:`INSET` inside it.
+    outside_rows : (p,) int64
+        The points outside the cage, extended across ...
+    exit_faces : (p,) int64
+        ... these faces.
+    """
+
+    points: np.ndarray
+    evaluated: np.ndarray
+    outside_rows: np.ndarray
+    exit_faces: np.ndarray
+
+
+def evaluation_plan(points, cage_v, cage_f) -> EvaluationPlan:
+    """The :class:`EvaluationPlan` of :func:`green_coordinates` for these points (the
+    torch twin, ``cagekit_learn.green``, evaluates and extends where the core does)."""
+    return _coordinates_and_plan(points, cage_v, cage_f)[2]
+
+
+def _coordinates_and_plan(points, cage_v, cage_f):
+    """:func:`green_coordinates` and its :class:`EvaluationPlan`."""
     from cagekit.errors import InputError
 
     pts = np.asarray(points, dtype=np.float64)
@@ -350,8 +388,10 @@ def green_coordinates(points, cage_v, cage_f) -> tuple[np.ndarray, np.ndarray]:
     chunks = 16 * numba.get_num_threads()
     n, k, m = len(px), len(cv), len(faces)
     phi, psi = np.empty((n, k)), np.empty((n, m))
+    evaluated = px.copy()
+    no_rows = np.zeros(0, dtype=np.int64)
     if not n:
-        return phi, psi
+        return phi, psi, EvaluationPlan(pts, pts.copy(), no_rows, no_rows)
     dist = np.empty(n)
     _green_kernel(px, cv, faces, *constants[:3], normals, *constants[3:], chunks, phi, psi,
                   dist)
@@ -360,6 +400,7 @@ def green_coordinates(points, cage_v, cage_f) -> tuple[np.ndarray, np.ndarray]:
     near = np.flatnonzero(~(dist >= SNAP))  # too close, or not finite (dist -1)
     if len(near):
         query = np.ascontiguousarray(_moved_inside(px[near], cv, faces))
+        evaluated[near] = query
         dist_near = np.empty(len(near))
         phi_near, psi_near = np.empty((len(near), k)), np.empty((len(near), m))
         _green_kernel(query, cv, faces, *constants[:3], normals, *constants[3:], chunks,
@@ -369,12 +410,14 @@ def green_coordinates(points, cage_v, cage_f) -> tuple[np.ndarray, np.ndarray]:
                                      f"{int((dist_near < 0).sum())} point(s)")
         phi[near], psi[near] = phi_near, psi_near
         outside[near] = False
-    if outside.any():
-        rows = np.flatnonzero(outside)
-        _extend_outside(px[rows], _exit_faces(px[rows], cv, faces, twice), cv, faces,
-                        normals, rows, phi, psi)
+    rows, exit_faces = np.flatnonzero(outside), no_rows
+    if len(rows):
+        exit_faces = _exit_faces(px[rows], cv, faces, twice)
+        _extend_outside(px[rows], exit_faces, cv, faces, normals, rows, phi, psi)
     psi *= diag
-    return phi, psi
+    plan = EvaluationPlan(pts, np.where(evaluated == px, pts, evaluated * diag + centre),
+                          rows, exit_faces)
+    return phi, psi, plan
 
 
 def _moved_inside(points, cv, faces) -> np.ndarray:
