@@ -54,9 +54,8 @@ __all__ = ["CageEnergy", "CageProblem", "CageSolution", "DeformResult", "DEFAULT
            "METHODS", "deform", "solve"]
 
 METHODS = ("cage", "scale", "nricp")
-#: coordinates the energy takes: linear in the cage (Green coordinates' normals are not;
-#: their gradients are issue 19's next step)
-COORDS = ("mvc",)
+#: the coordinates the energy takes (Green's through their faces' terms, exactly)
+COORDS = ("mvc", "green")
 TARGET_KINDS = ("full", "partial")
 #: weight of the part-affinity term (:func:`cagekit.losses.part_affinity_loss`) on sources
 #: of two or more parts (connected components of 30 vertices or more); chosen on real
@@ -185,11 +184,16 @@ class CageEnergy:
     partial : bool
         The target is a scan seen from one side: the alignment term is
         :func:`cagekit.losses.partial_chamfer_loss`, not Chamfer.
+    face_terms : cagekit.coords.green.FaceTerms, optional
+        Green coordinates: the ``W`` matrices then have ``k + m`` columns and act on
+        ``Z = [C; face_terms(C)]`` (points, parts and detail); the cage and the cage's
+        symmetry terms act on ``C``; the gradient goes back through the faces' normals
+        and stretch factors exactly (:meth:`~cagekit.coords.green.FaceTerms.vjp`).
     """
 
     def __init__(self, W_samples, target, W_shape, shape_ref, cage_f, cage_ref, weights,
                  symmetry=None, W_landmarks=None, landmarks=None, parts_matrix=None,
-                 partial=False, detail_matrix=None):
+                 partial=False, detail_matrix=None, face_terms=None):
         self.W_samples, self.target = W_samples, target
         self.tree = cKDTree(target) if target is not None else None
         self.W_shape, self.shape_ref = W_shape, shape_ref
@@ -203,11 +207,18 @@ class CageEnergy:
         self.parts_matrix = parts_matrix
         self.detail_matrix = detail_matrix
         self.partial = partial
+        self.face_terms = face_terms
+        self.Z_ref = self.lift(cage_ref)
+
+    def lift(self, C):
+        """What the ``W`` matrices act on: ``C``, or ``[C; face_terms(C)]`` (Green)."""
+        return C if self.face_terms is None else np.vstack([C, self.face_terms(C)])
 
     def evaluate(self, C):
         """Weighted energy, its gradient (k, 3) and each active term's unweighted value."""
         w = self.weights
-        values, energy, grad = {}, 0.0, np.zeros_like(C)
+        Z = self.lift(C)
+        values, energy, grad = {}, 0.0, np.zeros_like(Z)
 
         def add(name, value, g):
             nonlocal energy, grad
@@ -215,33 +226,40 @@ class CageEnergy:
             energy += w[name] * value
             grad += w[name] * g
 
+        def add_cage(name, value, g):  # a term of C alone: its rows of Z's gradient
+            add(name, value, np.vstack([g, np.zeros((len(Z) - len(C), 3))]))
+
         Y = None
         if w["chamfer"] and self.target is not None:
-            Y = self.W_samples @ C
+            Y = self.W_samples @ Z
             value, g = (losses.partial_chamfer_loss(Y, self.target, self.tree) if self.partial
                         else losses.chamfer_loss(Y, self.target, self.tree))
             add("chamfer", value, self.W_samples.T @ g)
         if w["landmarks"] and self.landmarks is not None:
-            value, g = losses.landmark_loss(self.W_landmarks @ C, self.landmarks)
+            value, g = losses.landmark_loss(self.W_landmarks @ Z, self.landmarks)
             add("landmarks", value, self.W_landmarks.T @ g)
         if w["p2f"] or w["normal"]:
-            shape, g = losses.shape_losses(self.W_shape @ C, self.shape_ref, w["p2f"],
+            shape, g = losses.shape_losses(self.W_shape @ Z, self.shape_ref, w["p2f"],
                                            w["normal"])
             values.update(shape)
             energy += sum(w[name] * value for name, value in shape.items())
             grad += self.W_shape.T @ g
         if w["symmetry"] and self.symmetry is not None:
-            Y = self.W_samples @ C if Y is None else Y
+            Y = self.W_samples @ Z if Y is None else Y
             v_shape, g_shape = losses.symmetry_loss(Y, self.symmetry)
             v_cage, g_cage = losses.cage_symmetry_loss(C, *self.partners, self.symmetry)
-            add("symmetry", v_shape + v_cage, self.W_samples.T @ g_shape + g_cage)
+            g = self.W_samples.T @ g_shape
+            g[:len(C)] += g_cage
+            add("symmetry", v_shape + v_cage, g)
         if w["cage"]:
-            add("cage", *losses.laplacian_loss(C, self.L, self.cage_ref))
+            add_cage("cage", *losses.laplacian_loss(C, self.L, self.cage_ref))
         if w["parts"] and self.parts_matrix is not None:
-            QC = self.parts_matrix @ C
-            add("parts", float(np.einsum("ij,ij->", C, QC)), 2.0 * QC)
+            QZ = self.parts_matrix @ Z
+            add("parts", float(np.einsum("ij,ij->", Z, QZ)), 2.0 * QZ)
         if w["detail"] and self.detail_matrix is not None:
-            add("detail", *losses.detail_loss(C, self.detail_matrix, self.cage_ref))
+            add("detail", *losses.detail_loss(Z, self.detail_matrix, self.Z_ref))
+        if self.face_terms is not None:
+            grad = grad[:len(C)] + self.face_terms.vjp(C, grad[len(C):])
         return energy, grad, values
 
     def __call__(self, C):
@@ -375,8 +393,9 @@ class CageProblem:
 
     Attributes
     ----------
-    W_vertices : (n, k) float64
-        Coordinates of the source's vertices (the result is ``W_vertices @ C``).
+    W_vertices : (n, k) or (n, k + m) float64
+        Coordinates of the source's vertices (the result is :meth:`vertices_of` ``(C)``:
+        ``W_vertices @ C``, or with Green coordinates ``W_vertices @ [C; s n'(C)]``).
     cage_v, cage_f : (k, 3) float64 and (c, 3) int64
         The source cage (faces as :func:`cagekit.bind` oriented them).
     box_cage : (k, 3) float64
@@ -391,6 +410,10 @@ class CageProblem:
     box_cage: np.ndarray
     energy: CageEnergy
     weights: dict
+
+    def vertices_of(self, C) -> np.ndarray:
+        """The deformed source for a deformed cage ``C`` (k, 3), target's unit frame."""
+        return self.W_vertices @ self.energy.lift(C)
 
     @classmethod
     def create(cls, source, target, cage, *, symmetry=None, landmarks=None, weights=None,
@@ -420,19 +443,28 @@ class CageProblem:
         used, own, index, mask = _shape_rows(Vs_n, Fs, shape_points, rng)
         parts = [Vs_n, S] + ([src_lm] if src_lm is not None else [])
         binding = bind(np.concatenate(parts), *cage, method=coords, check=False)
-        W = binding.weights
+        face_terms = None
+        if coords == "green":
+            from cagekit.coords.green import FaceTerms
+
+            W = np.hstack([binding.phi, binding.psi])
+            face_terms = FaceTerms(binding.cage_v, binding.cage_f)
+        else:
+            W = binding.weights
         n, s = len(Vs_n), len(S)
         W_samples = W[n:n + s]
         W_landmarks = W[n + s:] if src_lm is not None else None
         W_shape = np.ascontiguousarray(W[:n][used])
         box_cage = binding.cage_v * _box_factors(Vs_n, Vt_n, target_kind)
         reference_cage = box_cage if reference == "aligned" else binding.cage_v
-        shape_ref = losses.shape_reference(W_shape @ reference_cage, own, index, mask)
+        lifted = (reference_cage if face_terms is None
+                  else np.vstack([reference_cage, face_terms(reference_cage)]))
+        shape_ref = losses.shape_reference(W_shape @ lifted, own, index, mask)
         parts_matrix = _part_term(Vs_n, Fs, W[:n]) if weights["parts"] else None
         detail = _detail_term(Vs_n, Fs, W[:n]) if weights["detail"] else None
         energy = CageEnergy(W_samples, T, W_shape, shape_ref, binding.cage_f,
                             reference_cage, weights, symmetry, W_landmarks, tgt_lm,
-                            parts_matrix, target_kind == "partial", detail)
+                            parts_matrix, target_kind == "partial", detail, face_terms)
         return cls(W[:n], binding.cage_v, binding.cage_f, box_cage, energy, weights)
 
 
@@ -486,7 +518,7 @@ def solve(problem: CageProblem, start=None, *, max_evaluations: int = 60,
     initial, _, _ = problem.energy.evaluate(C0)
     minimum = minimise(problem.energy, C0, max_evaluations, tolerance, progress)
     total, _, terms = problem.energy.evaluate(minimum.x)
-    return CageSolution(problem.W_vertices @ minimum.x, minimum.x, terms, initial, total,
+    return CageSolution(problem.vertices_of(minimum.x), minimum.x, terms, initial, total,
                         minimum.evaluations)
 
 
@@ -569,7 +601,10 @@ def deform(source, target, cage=None, *, method: str = "cage", symmetry: str | N
         costs, so dCotLap, which charges for stretch, is lower, but parts bend where the
         target's proportions differ; the cage weight then defaults to 1, not 0.3).
         docs/benchmarks.md ("Per-pair deformation") has both on 20 pairs.
-    coords : {"mvc"}
+    coords : {"mvc", "green"}, default "mvc"
+        The coordinates that bind the source to its cage (:func:`cagekit.bind`); with
+        ``"green"`` the energy's gradient goes through the faces' normals and stretch
+        factors exactly.
     seed : int, default 0
     progress : callable, optional
         Called as ``progress(evaluations, max_evaluations)`` after each energy

@@ -47,6 +47,24 @@ def test_deform_writes_result_cages_preview_and_json(pair):
     assert evaluated["dcotlap"] == pytest.approx(report["dcotlap"])
 
 
+def test_deform_with_green_coordinates_and_apply_reproduces_it(pair, tmp_path):
+    folder, source, target = pair
+    out, cage = tmp_path / "green.obj", tmp_path / "cage.obj"
+    result = cagekit("deform", source, target, "-o", out, "--coords", "green", "--faces",
+                     "80", "--save-cage", cage, "--json")
+    assert result.returncode == 0, result.stderr
+    report = json.loads(result.stdout)
+    scale = json.loads(cagekit("deform", source, target, "-o", tmp_path / "scale.obj",
+                               "--method", "scale", "--json").stdout)
+    assert 0 < report["cd"] < scale["cd"]
+    # the saved cages give the same result through `cagekit apply --coords green`
+    again = tmp_path / "again.obj"
+    applied = cagekit("apply", source, cage, tmp_path / "cage_deformed.obj", "-o", again,
+                      "--coords", "green")
+    assert applied.returncode == 0, applied.stderr
+    np.testing.assert_allclose(load_obj(again)[0], load_obj(out)[0], atol=1e-8)
+
+
 @pytest.mark.parametrize("method", ["scale", "nricp"])
 def test_deform_baselines(pair, method):
     folder, source, target = pair

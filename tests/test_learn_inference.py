@@ -114,6 +114,7 @@ def test_deform_model_command(run_dir, pair, tmp_path, capsys):
     (["--refine"], "needs --model"),
     (["--model", "{run}", "--method", "scale"], "apply to --method cage only"),
     (["--model", "{run}", "--symmetry", "x"], "need --refine"),
+    (["--model", "{run}", "--coords", "green"], "--coords green applies"),
     (["--model", "{hollow}"], "not a usable cagekit checkpoint"),
 ])
 def test_deform_model_bad_input_exits_2_with_one_line(run_dir, pair, tmp_path, capsys,

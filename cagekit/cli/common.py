@@ -53,7 +53,7 @@ BIND_CHUNK = 20_000
 #: neither numba nor libigl (tests check that they match)
 COORDINATE_METHODS = ("mvc", "green")
 #: the coordinates ``cagekit deform``'s energy takes (:data:`cagekit.deformation.COORDS`)
-DEFORM_COORDINATE_METHODS = ("mvc",)
+DEFORM_COORDINATE_METHODS = ("mvc", "green")
 FIT_METHODS = ("wrap", "template")
 TEMPLATE_FACES = 80
 

@@ -136,8 +136,9 @@ def _load_landmark_pair(src_path, tgt_path):
                    "scanned point onto SOURCE, SOURCE onto the scan at a tenth of the "
                    "weight, so SOURCE's unseen side is not squashed).")
 @click.option("--coords", type=click.Choice(list(DEFORM_COORDINATE_METHODS)), default="mvc",
-              show_default=True, help="Cage coordinates (the energy takes mean value "
-                                      "coordinates only today).")
+              show_default=True,
+              help="Cage coordinates: mean value (affine-invariant) or Green (exact for "
+                   "similarities; details keep their proportions under stretch).")
 @click.option("--preview", type=click.Path(dir_okay=False), default=None,
               help="Draw source, target and result side by side (cages as wireframes) "
                    "into this PNG.")
@@ -174,6 +175,10 @@ def deform(ctx, source, target, out, method, cage_path, faces, save_cage, symmet
     start_command(ctx)
     outputs = _check_options(ctx, source, target, out, method, cage_path, save_cage,
                              symmetry, landmarks, weights, model_path, refine, preview)
+    if model_path and coords != "mvc":
+        raise click.UsageError("--coords green applies to the per-pair optimisation only; "
+                               "a trained model's cages are bound with mean value "
+                               "coordinates")
     if model_path and target_kind != "full":
         raise click.UsageError("--target-kind partial applies to the per-pair optimisation "
                                "only, not to --model")

@@ -50,7 +50,7 @@ import numpy as np
 
 from cagekit.frame import bounding_box_diagonal
 
-__all__ = ["green_coordinates", "evaluation_plan", "EvaluationPlan", "stretch_factors",
+__all__ = ["green_coordinates", "evaluation_plan", "EvaluationPlan", "FaceTerms", "stretch_factors",
            "unit_normals", "SNAP", "INSET"]
 
 #: points closer than this to the cage (in cage diagonals) are evaluated INSET inside it
@@ -476,3 +476,70 @@ def _extend_outside(points, closest_faces, cv, faces, normals, rows, phi, psi):
     np.add.at(phi, (rows, f[:, 1]), a1)
     np.add.at(phi, (rows, f[:, 2]), a2)
     np.add.at(psi, (rows, closest_faces), a3)
+
+
+class FaceTerms:
+    """The face terms ``s_j n'_j`` of a Green deformation as a function of the moved cage,
+    with their vector-Jacobian product (for optimising a cage under Green coordinates).
+
+    A Green deformation is linear in ``Z = [C; face_terms(C)]``: ``[phi psi] @ Z``.
+
+    Parameters
+    ----------
+    rest_v : (k, 3) array_like of float
+        The cage the points were bound to.
+    cage_f : (m, 3) array_like of int
+
+    Examples
+    --------
+    >>> from cagekit.shapes import box_cage
+    >>> v, f = box_cage()
+    >>> terms = FaceTerms(v, f)
+    >>> n, _ = unit_normals(v, f)
+    >>> bool(np.allclose(terms(2.0 * v), 2.0 * n))
+    True
+    """
+
+    def __init__(self, rest_v, cage_f):
+        self.rest_v = np.asarray(rest_v, dtype=np.float64)
+        self.faces = np.asarray(cage_f, dtype=np.int64)
+        u1 = self.rest_v[self.faces[:, 1]] - self.rest_v[self.faces[:, 0]]
+        u2 = self.rest_v[self.faces[:, 2]] - self.rest_v[self.faces[:, 0]]
+        self._u11 = np.einsum("ij,ij->i", u1, u1)
+        self._u22 = np.einsum("ij,ij->i", u2, u2)
+        self._u12 = np.einsum("ij,ij->i", u1, u2)
+        self._twice = np.linalg.norm(np.cross(u1, u2), axis=1)
+
+    def _parts(self, C):
+        f = self.faces
+        w1, w2 = C[f[:, 1]] - C[f[:, 0]], C[f[:, 2]] - C[f[:, 0]]
+        cross = np.cross(w1, w2)
+        length = np.linalg.norm(cross, axis=1)
+        return w1, w2, cross, length
+
+    def __call__(self, C) -> np.ndarray:
+        """``s_j n'_j`` of every face, (m, 3), for the moved cage ``C`` (k, 3)."""
+        C = np.asarray(C, dtype=np.float64)
+        _, _, cross, length = self._parts(C)
+        return (stretch_factors(self.rest_v, C, self.faces) / length)[:, None] * cross
+
+    def vjp(self, C, G) -> np.ndarray:
+        """``d(sum G * face_terms(C)) / dC``, (k, 3), for ``G`` (m, 3)."""
+        C = np.asarray(C, dtype=np.float64)
+        w1, w2, cross, length = self._parts(C)
+        n = cross / length[:, None]
+        s = stretch_factors(self.rest_v, C, self.faces)
+        # s^2 = (|w1|^2 |u2|^2 - 2 (w1.w2)(u1.u2) + |w2|^2 |u1|^2) / (2 (2A)^2)
+        denom = 2.0 * self._twice**2 * s
+        ds_w1 = (self._u22[:, None] * w1 - self._u12[:, None] * w2) / denom[:, None]
+        ds_w2 = (self._u11[:, None] * w2 - self._u12[:, None] * w1) / denom[:, None]
+        gn = np.einsum("ij,ij->i", G, n)
+        # s G . dn with dn = (I - n n^T) dc / |c| and dc = dw1 x w2 + w1 x dw2
+        p = (s / length)[:, None] * (G - gn[:, None] * n)
+        g1 = gn[:, None] * ds_w1 + np.cross(w2, p)
+        g2 = gn[:, None] * ds_w2 + np.cross(p, w1)
+        out = np.zeros_like(C)
+        np.add.at(out, self.faces[:, 1], g1)
+        np.add.at(out, self.faces[:, 2], g2)
+        np.add.at(out, self.faces[:, 0], -(g1 + g2))
+        return out
