@@ -42,8 +42,8 @@ from cagekit.geometry import (
 )
 from cagekit.sampling import surface_samples
 
-__all__ = ["chamfer", "chamfer_distance", "dcotlap", "evaluate", "part_nonaffinity",
-           "planarity", "symmetry_error", "MIN_PART_VERTICES", "PLANAR_DEGREES",
+__all__ = ["chamfer", "chamfer_distance", "conformal_distortion", "dcotlap", "evaluate",
+           "part_nonaffinity", "planarity", "symmetry_error", "MIN_PART_VERTICES", "PLANAR_DEGREES",
            "SYMMETRY_TOLERANCE"]
 
 #: a source component with fewer vertices is too small to be a part (a screw, a label)
@@ -377,6 +377,59 @@ def planarity(V_src: ArrayLike, F_src: ArrayLike, V_out: ArrayLike,
     turn = np.abs(_normal_angles(Vo, F, a[planar], b[planar]) - before[planar])
     return {"mean_deg": float(turn.mean()), "p95_deg": float(np.quantile(turn, 0.95)),
             "pairs": int(planar.sum())}
+
+
+def conformal_distortion(V_src: ArrayLike, F_src: ArrayLike, V_out: ArrayLike) -> dict:
+    """How far each face's deformation is from a similarity: ``sigma_1 / sigma_2``.
+
+    Per face of positive area, the singular values of the linear map that takes the
+    source face's two edges to the deformed face's (the 3 x 2 deformation gradient in
+    the face's own frame): 1 for a similarity of the face, the stretch ratio otherwise
+    (2 for a face stretched twice along one of its directions), inf for a face
+    collapsed to a segment.
+
+    Parameters
+    ----------
+    V_src : (n, 3) array_like of float
+    F_src : (m, 3) array_like of int
+    V_out : (n, 3) array_like of float
+        The deformed vertices, in the source's order.
+
+    Returns
+    -------
+    dict
+        ``{"mean": float, "p95": float, "max": float}`` over the faces (area-weighted
+        mean).
+
+    Examples
+    --------
+    >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.0]])
+    >>> F = np.array([[0, 1, 2]])
+    >>> conformal_distortion(V, F, V * [2.0, 1.0, 1.0])["mean"]
+    2.0
+    """
+    Vs, Vo, F = _paired(V_src, F_src, V_out)
+    area = face_areas(Vs, F)
+    F, area = F[area > 0], area[area > 0]
+    if not len(F):
+        raise InputError("conformal distortion needs faces of positive area")
+    e1, e2 = Vs[F[:, 1]] - Vs[F[:, 0]], Vs[F[:, 2]] - Vs[F[:, 0]]
+    t = e1 / np.linalg.norm(e1, axis=1, keepdims=True)
+    b = e2 - np.einsum("ij,ij->i", e2, t)[:, None] * t
+    b /= np.linalg.norm(b, axis=1, keepdims=True)
+    # the source edges in the face's frame (2 x 2, upper triangular) and the deformed ones
+    E = np.zeros((len(F), 2, 2))
+    E[:, 0, 0] = np.linalg.norm(e1, axis=1)
+    E[:, 0, 1] = np.einsum("ij,ij->i", e2, t)
+    E[:, 1, 1] = np.einsum("ij,ij->i", e2, b)
+    D = np.stack([Vo[F[:, 1]] - Vo[F[:, 0]], Vo[F[:, 2]] - Vo[F[:, 0]]], axis=2)  # (m, 3, 2)
+    J = D @ np.linalg.inv(E)
+    sigma = np.linalg.svd(J, compute_uv=False)
+    with np.errstate(divide="ignore"):
+        ratio = np.where(sigma[:, 1] > 0, sigma[:, 0] / np.where(sigma[:, 1] > 0,
+                                                                 sigma[:, 1], 1.0), np.inf)
+    return {"mean": float(np.sum(area * ratio) / area.sum()),
+            "p95": float(np.quantile(ratio, 0.95)), "max": float(ratio.max())}
 
 
 def symmetry_error(V_src: ArrayLike, V_out: ArrayLike,

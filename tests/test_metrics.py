@@ -456,3 +456,19 @@ def test_symmetry_is_found_kept_by_axis_scaling_and_lost_by_a_bend():
     assert symmetry_error(skew, skew)["axis"] == "z"  # y symmetries are gone, z's is not
     cloud = np.random.default_rng(1).normal(size=(50, 3))
     assert symmetry_error(cloud, cloud) is None
+
+
+def test_conformal_distortion_known_answers():
+    from cagekit.metrics import conformal_distortion
+
+    V, F = icosphere()
+    rng = np.random.default_rng(3)
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    similar = 2.5 * V @ q.T + [1.0, -2.0, 3.0]
+    assert conformal_distortion(V, F, similar)["max"] == pytest.approx(1.0, abs=1e-9)
+    # a flat face stretched 3x along x: ratio 3 whatever its shape
+    tri = np.array([[0, 0, 0], [1, 0.2, 0], [0.3, 1, 0.0]])
+    one = np.array([[0, 1, 2]])
+    assert conformal_distortion(tri, one, tri * [3.0, 1, 1])["mean"] == pytest.approx(3.0)
+    flat = tri * [1.0, 0.0, 1.0]  # collapsed onto the x axis
+    assert conformal_distortion(tri, one, flat)["max"] == np.inf

@@ -1,0 +1,170 @@
+"""Green coordinates against mean value coordinates on the same deformations, in one run.
+
+(b) The variations benchmark: every pair of ``bench_deform.py`` (procedural chairs,
+tables and vases; the CGAL animals; the real furniture of ``sweethome3d-furniture``),
+``cagekit.deform`` with ``coords="mvc"`` and ``coords="green"`` on the same fitted cage:
+CD x1e2, dCotLap x1e3, the worst part's non-affinity (%), planarity p95 (degrees), the
+conformal distortion of the result's faces (:func:`cagekit.metrics.conformal_distortion`,
+area-weighted mean of each face's singular-value ratio) and seconds; medians per group.
+
+(c) A large articulation: a bumpy procedural limb (a cylinder with surface detail) in a
+tube-shaped cage whose far half turns 90 degrees about the joint (each cage vertex
+rotated by an angle that ramps from 0 to 90 degrees across the joint); the limb's
+conformal distortion and its volume change under each coordinates; ``--picture`` draws
+the rest limb and both results with their cages.
+
+(a) The transfer benchmark is not here: ``cagekit transfer`` binds with mean value
+coordinates only.
+
+Usage::
+
+    python benchmarks/bench_green_compare.py [--cache /tmp/cgal] [--picture PNG] [--json FILE]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+import warnings
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(__file__))
+
+from bench_deform import group, pairs  # noqa: E402
+
+import cagekit  # noqa: E402
+from cagekit.errors import InputError  # noqa: E402
+from cagekit.metrics import conformal_distortion  # noqa: E402
+
+COORDS = ("mvc", "green")
+KEYS = ("cd", "dcotlap", "part_worst", "planar_p95", "conformal", "seconds")
+
+
+def compare_pair(source, target, symmetry):
+    """Both coordinates on one pair, the cage fitted once (by the MVC run)."""
+    rows, cage = {}, None
+    for coords in COORDS:
+        t0 = time.perf_counter()
+        try:
+            result = cagekit.deform(source, target, cage=cage, coords=coords,
+                                    symmetry=symmetry, seed=0)
+        except InputError as exc:
+            print(f"  {coords} failed: {exc}", file=sys.stderr)
+            rows[coords] = dict.fromkeys(KEYS, float("nan"))
+            continue
+        seconds = time.perf_counter() - t0
+        cage = (result.cage_v, result.cage_f)
+        figures = cagekit.evaluate(source, target, (result.vertices, source[1]))
+        rows[coords] = {
+            "cd": figures["cd_x1e2"], "dcotlap": figures["dcotlap_x1e3"],
+            "part_worst": 100 * figures["part_nonaffinity_worst"],
+            "planar_p95": figures["planarity_p95_deg"],
+            "conformal": conformal_distortion(source[0], source[1], result.vertices)["mean"],
+            "seconds": seconds}
+    return rows
+
+
+def variations(cache):
+    rows = []
+    header = "".join(f"{c + ' ' + k:>17}" for c in COORDS for k in KEYS)
+    print(f"{'pair':<46}{header}")
+    for name, source, target, symmetry in pairs(cache):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            row = compare_pair(source, target, symmetry)
+        row["name"], row["group"] = name, group(name)
+        rows.append(row)
+        print(f"{name[:45]:<46}" + "".join(f"{row[c][k]:>17.3f}" for c in COORDS for k in KEYS),
+              flush=True)
+    print(f"\nmedians{'':<9}" + "".join(f"{k:>12}" for k in KEYS))
+    for name in ("procedural", "animals", "real furniture"):
+        sel = [r for r in rows if r["group"] == name]
+        if not sel:
+            continue
+        for c in COORDS:
+            print(f"{name + ' ' + c:<23}" + "".join(
+                f"{np.nanmedian([r[c][k] for r in sel]):>12.3f}" for k in KEYS)
+                + f"   ({len(sel)} pairs)")
+    return rows
+
+
+def limb(resolution: int = 48):
+    """A bumpy cylinder along x (length 2, radius 0.2) and a tube cage around it."""
+    import trimesh
+
+    from cagekit.shapes import box_cage
+
+    mesh = trimesh.creation.cylinder(radius=0.2, height=2.0, sections=resolution)
+    mesh = mesh.subdivide_to_size(0.04)
+    V = np.asarray(mesh.vertices)[:, [2, 0, 1]]  # along x
+    F = np.asarray(mesh.faces)
+    normals = np.asarray(trimesh.Trimesh(V, F, process=False).vertex_normals)
+    bumps = 0.015 * np.sin(18 * V[:, 0]) * np.sin(6 * np.arctan2(V[:, 2], V[:, 1]))
+    V = V + bumps[:, None] * normals
+    cage_v, cage_f = box_cage(8, half_extent=(1.15, 0.32, 0.32))
+    return (V, F), (cage_v, cage_f)
+
+
+def bend(points, degrees=90.0, half_width=0.25):
+    """Rotate about the z axis through the origin by an angle that ramps from 0 (x <=
+    -half_width) to ``degrees`` (x >= half_width)."""
+    t = np.clip((points[:, 0] + half_width) / (2 * half_width), 0.0, 1.0)
+    angle = np.radians(degrees) * (3 * t**2 - 2 * t**3)
+    c, s = np.cos(angle), np.sin(angle)
+    out = points.copy()
+    out[:, 0] = c * points[:, 0] - s * points[:, 1]
+    out[:, 1] = s * points[:, 0] + c * points[:, 1]
+    return out
+
+
+def articulation(picture=None):
+    import trimesh
+
+    (V, F), (cv, cf) = limb()
+    moved = bend(cv)
+    out = {"vertices": len(V), "cage_faces": len(cf)}
+    results = {}
+    rest_volume = trimesh.Trimesh(V, F, process=False).volume
+    for coords in COORDS:
+        deformed = cagekit.bind(V, cv, cf, method=coords).deform(moved)
+        results[coords] = deformed
+        distortion = conformal_distortion(V, F, deformed)
+        volume = trimesh.Trimesh(deformed, F, process=False).volume / rest_volume
+        out[coords] = {"conformal_mean": distortion["mean"], "conformal_p95": distortion["p95"],
+                       "volume_ratio": volume}
+        print(f"limb bent 90 degrees, {coords:<6}: conformal distortion mean "
+              f"{distortion['mean']:.3f}, p95 {distortion['p95']:.3f}, max "
+              f"{distortion['max']:.3f}; volume x{volume:.3f}")
+    if picture:
+        from cagekit.render import render_meshes
+
+        render_meshes([(V, F), (results["mvc"], F), (results["green"], F)], picture,
+                      cages=[(cv, cf), (moved, cf), (moved, cf)],
+                      titles=["rest", f"MVC: conformal {out['mvc']['conformal_mean']:.2f}",
+                              f"Green: conformal {out['green']['conformal_mean']:.2f}"],
+                      size=(360, 360), views=((0, -90),), up="y")
+        print(f"picture: {picture}")
+    return out
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cache", default="/tmp/cgal")
+    parser.add_argument("--picture", default=None)
+    parser.add_argument("--json", default=None)
+    parser.add_argument("--limb-only", action="store_true")
+    args = parser.parse_args()
+    report = {"articulation": articulation(args.picture)}
+    if not args.limb_only:
+        report["variations"] = variations(args.cache)
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(report, fh, indent=1, default=float)
+
+
+if __name__ == "__main__":
+    main()
