@@ -16,7 +16,6 @@ from test_mvc import CAGES, _near_points
 
 from cagekit import InputError, bind
 from cagekit.coords.green import INSET, green_coordinates, stretch_factors, unit_normals
-from cagekit.deformation import deform
 from cagekit.shapes import box_cage, icosphere_cage
 
 
@@ -218,12 +217,6 @@ def test_bind_green_and_its_errors():
         green_coordinates([[np.nan, 0, 0]], v, f)
     phi, psi = green_coordinates(np.zeros((0, 3)), v, f)
     assert phi.shape == (0, len(v)) and psi.shape == (0, len(f))
-
-
-def test_deform_refuses_green_until_its_energy_takes_it():
-    v, f = box_cage(2)
-    with pytest.raises(InputError, match="coords"):
-        deform((v, f), (v * 2, f), coords="green")
 
 
 def test_apply_with_green_coordinates_moves_by_a_similarity(tmp_path):

@@ -29,8 +29,9 @@ about ``1e-14 D`` (``D`` the cage's bounding-box diagonal) down to ``1e-11 D`` f
 cage (docs/benchmarks.md, "Green coordinates").
 
 Points within :data:`SNAP` cage diagonals of the cage (where the integrands are singular)
-are evaluated :data:`INSET` diagonals inside it, along the angle-weighted pseudo-normal of
-their closest cage point, so reproduction there is off by at most ``INSET * D``. Points
+are evaluated :data:`INSET` diagonals from it on their own side, on the ray from their
+closest cage point through them (points on the cage: inward along the angle-weighted
+pseudo-normal there), so reproduction there is off by at most about ``INSET * D``. Points
 outside take the paper's extension across their exit face, taken to be the face closest
 to them (a sliver's tie goes to a better-shaped neighbour that is as close): the raw
 integrals vanish outside (the coordinates sum to zero), and the point's
@@ -54,9 +55,9 @@ __all__ = ["green_coordinates", "evaluation_plan", "EvaluationPlan", "FaceTerms"
            "unit_normals", "SNAP", "INSET"]
 
 #: points closer than this to the cage (in cage diagonals) are evaluated INSET inside it
-SNAP = 1e-12
+SNAP = 3e-11
 #: how far inside such points are evaluated (cage diagonals): reproduction's error there
-INSET = 1e-12
+INSET = 3e-11
 
 _INV_FOUR_PI = 1.0 / (4.0 * np.pi)
 
@@ -399,7 +400,7 @@ def _coordinates_and_plan(points, cage_v, cage_f):
     outside = phi.sum(axis=1) < 0.5
     near = np.flatnonzero(~(dist >= SNAP))  # too close, or not finite (dist -1)
     if len(near):
-        query = np.ascontiguousarray(_moved_inside(px[near], cv, faces))
+        query = np.ascontiguousarray(_moved_off(px[near], cv, faces))
         evaluated[near] = query
         dist_near = np.empty(len(near))
         phi_near, psi_near = np.empty((len(near), k)), np.empty((len(near), m))
@@ -409,27 +410,34 @@ def _coordinates_and_plan(points, cage_v, cage_f):
             raise FloatingPointError("Green coordinates are not finite at "
                                      f"{int((dist_near < 0).sum())} point(s)")
         phi[near], psi[near] = phi_near, psi_near
-        outside[near] = False
+        outside[near] = phi_near.sum(axis=1) < 0.5
     rows, exit_faces = np.flatnonzero(outside), no_rows
     if len(rows):
-        exit_faces = _exit_faces(px[rows], cv, faces, twice)
-        _extend_outside(px[rows], exit_faces, cv, faces, normals, rows, phi, psi)
+        exit_faces = _exit_faces(evaluated[rows], cv, faces, twice)
+        _extend_outside(evaluated[rows], exit_faces, cv, faces, normals, rows, phi, psi)
     psi *= diag
     plan = EvaluationPlan(pts, np.where(evaluated == px, pts, evaluated * diag + centre),
                           rows, exit_faces)
     return phi, psi, plan
 
 
-def _moved_inside(points, cv, faces) -> np.ndarray:
-    """Points on or near the cage moved to :data:`INSET` inside it, along the
-    angle-weighted pseudo-normal of their closest cage point."""
+def _moved_off(points, cv, faces) -> np.ndarray:
+    """Points on or near the cage moved to :data:`INSET` from it: along the ray from
+    their closest cage point through them (the open segment to the closest point never
+    crosses the cage, so an inside point stays inside and an outside one outside), or,
+    for a point on the cage, inward along the angle-weighted pseudo-normal there."""
     import igl
 
     result = igl.signed_distance(np.ascontiguousarray(points), cv, faces,
                                  igl.SignedDistanceType.SIGNED_DISTANCE_TYPE_PSEUDONORMAL)
     foot, pseudo = result[2], result[3]
+    away = points - foot
+    length = np.linalg.norm(away, axis=1, keepdims=True)
     norms = np.linalg.norm(pseudo, axis=1, keepdims=True)
-    return foot - INSET * pseudo / np.where(norms > 0, norms, 1.0)
+    inward = -pseudo / np.where(norms > 0, norms, 1.0)
+    direction = np.where(length > 1e-3 * INSET, away / np.where(length > 0, length, 1.0),
+                         inward)
+    return foot + INSET * direction
 
 
 #: a face whose twice-area is below this times its longest edge squared is a sliver: as
