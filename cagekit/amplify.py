@@ -29,11 +29,13 @@ from cagekit.collection import Shape, find_shapes, load_shape_of
 from cagekit.errors import InputError
 from cagekit.files import atomic_output, one_line, read_text
 
-__all__ = ["COLUMNS", "MAX_CD", "MAX_NONAFFINITY", "METHODS", "SHEET_COLUMNS", "Item",
+__all__ = ["COLUMNS", "COORDS", "MAX_CD", "MAX_NONAFFINITY", "METHODS", "SHEET_COLUMNS", "Item",
            "amplify", "contact_sheet", "deform_item", "plan_pairs", "prepare_worker",
            "process_pool"]
 
 METHODS = ("cage", "scale", "model")
+#: the coordinates of method cage (:data:`cagekit.deformation.COORDS`)
+COORDS = ("mvc", "green")
 #: a variation of a source of two or more parts whose worst part is farther than this
 #: from an affine map of itself (:func:`cagekit.metrics.part_nonaffinity`, fraction of the
 #: part's size) is rejected; a one-part source (an animal, a vase) is meant to bend
@@ -42,7 +44,7 @@ MAX_NONAFFINITY = 0.02
 #: :func:`cagekit.evaluate`) exceeds this is rejected: it did not take the target's shape
 MAX_CD = 0.05
 #: the manifest's columns, in order
-COLUMNS = ("source", "target", "output", "method", "seed", "status", "cd", "dcotlap",
+COLUMNS = ("source", "target", "output", "method", "coords", "seed", "status", "cd", "dcotlap",
            "parts", "part_nonaffinity_median", "part_nonaffinity_worst",
            "planarity_p95_deg", "seconds", "cage_seconds", "error", "source_hash", "target_hash")
 _FIGURES = ("cd", "dcotlap", "parts", "part_nonaffinity_median", "part_nonaffinity_worst",
@@ -177,7 +179,7 @@ def _items(pairs) -> list[Item]:
 
 
 def deform_item(source: str, target: str, method: str = "cage", seed: int = 0, cage=None,
-                deformer=None) -> dict:
+                deformer=None, coords: str = "mvc") -> dict:
     """Make one variation: a pure function of its arguments, run by a worker.
 
     BLAS runs single-threaded inside (``threadpoolctl``): OpenBLAS's results depend on its
@@ -198,6 +200,8 @@ def deform_item(source: str, target: str, method: str = "cage", seed: int = 0, c
     deformer : callable, optional
         For ``model``: ``deformer(source, target, seed) -> DeformResult``
         (``cagekit_learn.inference.ModelDeformer``).
+    coords : {"mvc", "green"}, default "mvc"
+        The coordinates of ``cage`` (:func:`cagekit.deform`'s ``coords``).
 
     Returns
     -------
@@ -219,7 +223,7 @@ def deform_item(source: str, target: str, method: str = "cage", seed: int = 0, c
             numba.set_num_threads(_WORKER_NUMBA_THREADS)
         with threadpool_limits(limits=1, user_api="blas"):
             figures, result, Fs = _deform_and_score(source, target, method, seed, cage,
-                                                    deformer, out)
+                                                    deformer, out, coords)
     except Exception as exc:  # noqa: BLE001 - one item fails, never the batch
         out["error"] = one_line(exc)
         out["seconds"] = time.perf_counter() - start
@@ -230,7 +234,7 @@ def deform_item(source: str, target: str, method: str = "cage", seed: int = 0, c
     return out
 
 
-def _deform_and_score(source, target, method, seed, cage, deformer, out):
+def _deform_and_score(source, target, method, seed, cage, deformer, out, coords):
     """The item's work (see :func:`deform_item`); the fitted cage and its time in ``out``."""
     from cagekit.deformation import deform
     from cagekit.metrics import evaluate
@@ -246,7 +250,8 @@ def _deform_and_score(source, target, method, seed, cage, deformer, out):
             t0 = time.perf_counter()
             cage = _fit(Vs, Fs, seed)
             out["cage_seconds"] = time.perf_counter() - t0
-        result = deform((Vs, Fs), (Vt, Ft), cage=cage, seed=seed, check=False)
+        result = deform((Vs, Fs), (Vt, Ft), cage=cage, seed=seed, check=False,
+                        coords=coords)
         out["cage"] = cage
     else:
         raise InputError(f"unknown method {method!r}; available: {', '.join(METHODS)}")
@@ -312,9 +317,10 @@ def _status(row, max_nonaffinity, max_cd) -> str:
     return "rejected" if too_bent or row["cd"] > max_cd else "ok"
 
 
-def _done(row, item, method, seed, folder, drop_rejected) -> bool:
+def _done(row, item, method, seed, coords, folder, drop_rejected) -> bool:
     """An earlier run's row that this run can keep as it is."""
     same = (row.get("method") == method and row.get("seed") == seed
+            and row.get("coords", "mvc") == coords
             and row.get("source_hash") == item.source.fingerprint
             and row.get("target_hash") == item.target.fingerprint
             and row.get("output") == item.output)
@@ -334,7 +340,8 @@ def amplify(collection: str, out_dir: str, *, variations: int | None = None,
             category_by: str | None = None, seed: int = 0, workers: int | None = None,
             executor: cf.Executor | None = None, max_nonaffinity: float = MAX_NONAFFINITY,
             max_cd: float = MAX_CD, drop_rejected: bool = False,
-            contact_sheet_path: str | None = None, progress=None) -> list[dict]:
+            contact_sheet_path: str | None = None, progress=None,
+            coords: str = "mvc") -> list[dict]:
     """Make variations of a collection; resume an earlier run in the same folder.
 
     Parameters
@@ -366,6 +373,8 @@ def amplify(collection: str, out_dir: str, *, variations: int | None = None,
         A PNG of the variations (:func:`contact_sheet`).
     progress : callable, optional
         ``progress(done, total)`` after each item.
+    coords : {"mvc", "green"}, default "mvc"
+        The coordinates of method ``cage`` (a changed choice redoes the items).
 
     Returns
     -------
@@ -390,6 +399,10 @@ def amplify(collection: str, out_dir: str, *, variations: int | None = None,
         raise InputError(f"unknown method {method!r}; available: {', '.join(METHODS)}")
     if method == "model" and deformer is None:
         raise InputError("method model needs a trained model (deformer)")
+    if coords not in COORDS:
+        raise InputError(f"unknown coordinates {coords!r}; available: {', '.join(COORDS)}")
+    if coords != "mvc" and method != "cage":
+        raise InputError(f"coords {coords} applies to method cage only")
     items = _items(plan_pairs(find_shapes(collection), variations=variations, pairs=pairs,
                               category_by=category_by, seed=seed))
     for sub in ("variations", "cages") + (() if drop_rejected else ("rejected",)):
@@ -399,7 +412,7 @@ def amplify(collection: str, out_dir: str, *, variations: int | None = None,
     kept, todo = {}, []
     for key, item in zip(order, items):
         row = manifest.rows.get(key)
-        if row is not None and _done(row, item, method, seed, out_dir, drop_rejected):
+        if row is not None and _done(row, item, method, seed, coords, out_dir, drop_rejected):
             kept[key] = row
         else:
             todo.append(item)
@@ -408,7 +421,7 @@ def amplify(collection: str, out_dir: str, *, variations: int | None = None,
         _refile(row, _status(row, max_nonaffinity, max_cd), out_dir, drop_rejected)
     manifest.save(order)
     runner = _Runner(items, todo, manifest, order, out_dir, method, seed, deformer,
-                     max_nonaffinity, max_cd, drop_rejected, progress)
+                     max_nonaffinity, max_cd, drop_rejected, progress, coords)
     runner.run(executor, workers)
     rows = [manifest.rows[key] for key in order]
     if contact_sheet_path:
@@ -483,9 +496,10 @@ class _Runner:
     """Submits items, a bounded number at a time, and records each as it finishes."""
 
     def __init__(self, items, todo, manifest, order, folder, method, seed, deformer,
-                 max_nonaffinity, max_cd, drop_rejected, progress):
+                 max_nonaffinity, max_cd, drop_rejected, progress, coords):
         self.todo, self.manifest, self.order, self.folder = todo, manifest, order, folder
         self.method, self.seed, self.deformer = method, seed, deformer
+        self.coords = coords
         self.max_nonaffinity, self.max_cd = max_nonaffinity, max_cd
         self.drop_rejected, self.progress = drop_rejected, progress
         self.total, self.finished = len(items), len(items) - len(todo)
@@ -556,13 +570,14 @@ class _Runner:
 
     def _args(self, item):
         return (item.source.location, item.target.location, self.method, self.seed,
-                self._cage_of(item.source), self.deformer)
+                self._cage_of(item.source), self.deformer, self.coords)
 
     def _record(self, item, result):
         from cagekit.io import save_mesh
 
         row = {"source": item.source.name, "target": item.target.name,
-               "output": item.output, "method": self.method, "seed": self.seed,
+               "output": item.output, "method": self.method, "coords": self.coords,
+               "seed": self.seed,
                "status": result["status"], "error": result["error"],
                "seconds": round(result.get("seconds", 0.0), 4),
                "cage_seconds": round(result.get("cage_seconds", 0.0), 4),

@@ -227,3 +227,21 @@ def test_sigint_stops_a_pool_batch_cleanly(tmp_path):
                      "--workers", "2")
     assert result.returncode == 0, result.stderr
     assert len(json.loads(manifest.read_text())["items"]) == 6
+
+
+def test_green_coordinates_are_recorded_and_a_change_redoes_the_items(tmp_path):
+    out = tmp_path / "out"
+    result = cagekit("amplify", "synthetic:vases:3", "-o", out, "--variations", "2",
+                     "--coords", "green", "--workers", "1", "--json")
+    assert result.returncode == 0, result.stderr
+    rows = json.loads((out / "manifest.json").read_text())["items"]
+    assert [r["coords"] for r in rows] == ["green", "green"]
+    assert all(r["status"] in ("ok", "rejected") and r["cd"] > 0 for r in rows)
+    # the same command with mvc redoes both items; the cages are reused (not refitted)
+    again = amplify("synthetic:vases:3", str(out), variations=2, seed=0, workers=1)
+    assert [r["coords"] for r in again] == ["mvc", "mvc"]
+    assert all(r["cage_seconds"] == 0 for r in again)
+    assert any(a["cd"] != b["cd"] for a, b in zip(rows, again))
+    refused = cagekit("amplify", "synthetic:vases:3", "-o", tmp_path / "x", "--variations",
+                      "1", "--method", "scale", "--coords", "green")
+    assert refused.returncode == 2 and "--coords green" in refused.stderr

@@ -7,6 +7,7 @@ import os
 import click
 
 from cagekit.cli.common import (
+    DEFORM_COORDINATE_METHODS,
     FiniteFloatRange,
     bar_callback,
     debug_option,
@@ -44,6 +45,10 @@ def _pairs_option(ctx, param, value):
 @click.option("--model", "model_path", type=click.Path(exists=True), default=None,
               help="Run folder or checkpoint of cagekit train (with --method model).")
 @click.option("--refine", is_flag=True, help="With --model: optimise each predicted cage.")
+@click.option("--coords", type=click.Choice(list(DEFORM_COORDINATE_METHODS)), default="mvc",
+              show_default=True,
+              help="Cage coordinates of --method cage (green: organic shapes; see "
+                   "docs/benchmarks.md).")
 @click.option("--category-by", type=click.Choice(["folder"]), default=None,
               help="Pair shapes only within the same top sub-folder.")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
@@ -65,7 +70,7 @@ def _pairs_option(ctx, param, value):
 @json_option
 @debug_option
 @click.pass_context
-def amplify(ctx, collection, out, variations, pairs, method, model_path, refine,
+def amplify(ctx, collection, out, variations, pairs, method, model_path, refine, coords,
             category_by, seed, workers, cluster, max_nonaffinity, max_cd, drop_rejected,
             sheet, as_json):
     """Deform sources of COLLECTION onto targets of it: many plausible variations.
@@ -93,6 +98,8 @@ def amplify(ctx, collection, out, variations, pairs, method, model_path, refine,
         raise click.UsageError("--method model and --model RUN_DIR go together")
     if refine and method != "model":
         raise click.UsageError("--refine applies to --method model")
+    if coords != "mvc" and method != "cage":
+        raise click.UsageError("--coords green applies to --method cage")
     if os.path.exists(out) and not os.path.isdir(out):
         raise InputError("exists and is not a folder", out)
     deformer = _deformer(model_path, refine) if method == "model" else None
@@ -105,7 +112,7 @@ def amplify(ctx, collection, out, variations, pairs, method, model_path, refine,
                          else max_nonaffinity,
                          max_cd=MAX_CD if max_cd is None else max_cd,
                          drop_rejected=drop_rejected, contact_sheet_path=sheet,
-                         progress=bar_callback(bar))
+                         progress=bar_callback(bar), coords=coords)
     counts = {status: sum(r["status"] == status for r in rows)
               for status in ("ok", "rejected", "failed")}
     if as_json:
