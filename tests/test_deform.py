@@ -30,6 +30,17 @@ def symmetry_error(V, axis="x"):
 # ------------------------------------------------------------------------- the energy
 
 
+def assert_gradient_by_differences(energy, C, grad, rng, h=1e-6):
+    """Twelve random entries of ``grad`` against central differences of the energy."""
+    for _ in range(12):
+        i, a = rng.integers(len(C)), rng.integers(3)
+        Cp, Cm = C.copy(), C.copy()
+        Cp[i, a] += h
+        Cm[i, a] -= h
+        numeric = (energy.evaluate(Cp)[0] - energy.evaluate(Cm)[0]) / (2 * h)
+        assert numeric == pytest.approx(grad[i, a], abs=1e-6 * np.abs(grad).max())
+
+
 def test_energy_gradient_matches_finite_differences(blob, blob_cage):
     """The full weighted energy's gradient, every term on, by central differences."""
     V, F = blob
@@ -58,14 +69,7 @@ def test_energy_gradient_matches_finite_differences(blob, blob_cage):
     assert set(values) == {"chamfer", "landmarks", "p2f", "normal", "symmetry", "cage",
                            "parts", "detail"}
     assert value == pytest.approx(sum(weights[k] * v for k, v in values.items()))
-    h = 1e-6
-    for _ in range(12):
-        i, a = rng.integers(len(C)), rng.integers(3)
-        Cp, Cm = C.copy(), C.copy()
-        Cp[i, a] += h
-        Cm[i, a] -= h
-        numeric = (energy.evaluate(Cp)[0] - energy.evaluate(Cm)[0]) / (2 * h)
-        assert numeric == pytest.approx(grad[i, a], abs=1e-6 * np.abs(grad).max())
+    assert_gradient_by_differences(energy, C, grad, rng)
 
 
 def test_green_energy_gradient_matches_finite_differences(blob, blob_cage):
@@ -97,14 +101,7 @@ def test_green_energy_gradient_matches_finite_differences(blob, blob_cage):
     C = b.cage_v * [1.1, 0.95, 1.0] + 0.02 * rng.standard_normal(cage_v.shape)
     value, grad, values = energy.evaluate(C)
     assert value == pytest.approx(sum(weights[k] * v for k, v in values.items()))
-    h = 1e-6
-    for _ in range(12):
-        i, a = rng.integers(len(C)), rng.integers(3)
-        Cp, Cm = C.copy(), C.copy()
-        Cp[i, a] += h
-        Cm[i, a] -= h
-        numeric = (energy.evaluate(Cp)[0] - energy.evaluate(Cm)[0]) / (2 * h)
-        assert numeric == pytest.approx(grad[i, a], abs=1e-6 * np.abs(grad).max())
+    assert_gradient_by_differences(energy, C, grad, rng)
 
 
 def test_deform_with_green_coordinates_recovers_a_similar_copy(blob, blob_cage):

@@ -87,11 +87,7 @@ class CageBinding:
         [[1.0, 0.0, 0.0]]
         """
         new = _checked_cage(new_cage_v, self.cage_v.shape)
-        out = _weights_times_vertices(self.weights, new)
-        if not np.all(np.isfinite(out)):
-            raise InputError("the deformed positions overflow float64 (cage or points too "
-                             "large)")
-        return out
+        return _finite_positions(_weights_times_vertices(self.weights, new))
 
     def encloses(self, points) -> bool:
         """Whether the given points (usually the bound ones) all lie inside the cage."""
@@ -158,16 +154,19 @@ class GreenBinding:
             raise InputError("the deformed cage has a face of zero area: Green coordinates "
                              "need its normal")
         scaled = normals * stretch_factors(self.cage_v, new, self.cage_f)[:, None]
-        out = (_weights_times_vertices(self.phi, new)
-               + _weights_times_vertices(self.psi, np.ascontiguousarray(scaled)))
-        if not np.all(np.isfinite(out)):
-            raise InputError("the deformed positions overflow float64 (cage or points too "
-                             "large)")
-        return out
+        return _finite_positions(_weights_times_vertices(self.phi, new)
+                                 + _weights_times_vertices(self.psi,
+                                                           np.ascontiguousarray(scaled)))
 
-    def encloses(self, points) -> bool:
-        """Whether the given points (usually the bound ones) all lie inside the cage."""
-        return cage_encloses(points, self.cage_v, self.cage_f)
+    encloses = CageBinding.encloses
+
+
+def _finite_positions(out: np.ndarray) -> np.ndarray:
+    """Deformed positions, refused when they overflowed float64."""
+    if not np.all(np.isfinite(out)):
+        raise InputError("the deformed positions overflow float64 (cage or points too "
+                         "large)")
+    return out
 
 
 def _checked_cage(new_cage_v, shape) -> np.ndarray:
