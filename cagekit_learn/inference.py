@@ -213,11 +213,11 @@ def deform_with_model(model: NeuralCages, source, target, *, points: int | None 
         warn_outside(Vs_n, cage_n, cage_f, shape="the source", cage="the model's cage")
         solving = {k: refine_options.pop(k) for k in _SOLVE_OPTIONS if k in refine_options}
         problem = CageProblem.create((Vs_n, Fs), (Vt_n, Ft), (cage_n, cage_f), seed=seed,
-                                     **refine_options)
+                                     coords=_coords_of(model), **refine_options)
         result.set_solution(problem, solve(problem, deformed_n, **solving))
         result.method = "learned+refine"
     else:
-        binding = bind(Vs_n, cage_n, cage_f, check=False)
+        binding = bind(Vs_n, cage_n, cage_f, method=_coords_of(model), check=False)
         result.vertices = ft.to_world(binding.deform(deformed_n))
         result.cage_v, result.cage_f = fs.to_world(cage_n), binding.cage_f
         result.deformed_cage_v = ft.to_world(deformed_n)
@@ -225,6 +225,11 @@ def deform_with_model(model: NeuralCages, source, target, *, points: int | None 
         raise FloatingPointError("the model produced NaN or inf positions")
     result.seconds = time.perf_counter() - start
     return result
+
+
+def _coords_of(model) -> str:
+    """The coordinates a model was trained with (``mvc`` for models from before)."""
+    return getattr(model.config, "coords", "mvc")
 
 
 class ModelDeformer:

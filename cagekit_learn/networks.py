@@ -61,6 +61,9 @@ class ModelConfig:
         The template's normalisation: ``normalised = (V - center) / scale``, so a cage of
         the normalised source frame maps back to the template's own frame by
         ``cage * scale + center``.
+    coords : {"mvc", "green"}
+        The coordinates the model's cages bind the source with, in training and at
+        inference (Green: :mod:`cagekit_learn.green`).
     """
 
     bottleneck: int = 256
@@ -75,6 +78,7 @@ class ModelConfig:
     fixed_source_vertex_count: int | None = None
     fixed_source_center: list | None = None
     fixed_source_scale: float | None = None
+    coords: str = "mvc"
 
     def to_dict(self) -> dict:
         """Plain Python values only (so a checkpoint loads with ``weights_only=True``)."""

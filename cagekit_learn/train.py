@@ -289,18 +289,26 @@ def training_loss(model, source, target, config: TrainConfig, knn: int = 16):
     out = model(source, target)
     net = _unwrap(model)
     cage_f = net.cage_f
-    cached = _fixed_source_cache(net, source, knn if config.alpha_shape else None)
-    if cached is not None:
+    green = getattr(net.config, "coords", "mvc") == "green"
+    cached = (None if green
+              else _fixed_source_cache(net, source, knn if config.alpha_shape else None))
+    if green:
+        X = _green_deformed(source, out["source_cage"], out["deformed_cage"], cage_f)
+    elif cached is not None:
         W, ref = cached
+        X = W @ out["deformed_cage"]
     else:
         W = mean_value_coordinates(source, out["source_cage"], cage_f)
-    X = W @ out["deformed_cage"]
+        X = W @ out["deformed_cage"]
     if config.align == "l2":
         align = losses.landmark_loss(X, target)
     else:
         align = losses.chamfer_loss(X, target)
-    terms = {"align": align.mean(), "mvc": losses.mvc_loss(W).mean()}
-    total = terms["align"] + ALPHA_MVC * terms["mvc"]
+    terms = {"align": align.mean()}
+    total = terms["align"]
+    if not green:  # the paper's L_MVC (negative MVC weights); Green's psi have no sign
+        terms["mvc"] = losses.mvc_loss(W).mean()
+        total = total + ALPHA_MVC * terms["mvc"]
     if config.alpha_shape:
         if cached is None:
             with torch.no_grad():
@@ -319,6 +327,19 @@ def training_loss(model, source, target, config: TrainConfig, knn: int = 16):
         terms["symmetry"] = symm.mean()
         total = total + terms["symmetry"]
     return total, {name: float(value.detach()) for name, value in terms.items()}
+
+
+def _green_deformed(source, source_cage, deformed_cage, cage_f):
+    """Each batch item's source deformed by its cages under Green coordinates, (B, P, 3)."""
+    from cagekit_learn.green import green_coordinates, green_deform
+
+    faces = cage_f.cpu().numpy()
+    out = []
+    for b in range(source.shape[0]):
+        rest = source_cage[b].to(source.dtype)
+        phi, psi = green_coordinates(source[b], rest, faces)
+        out.append(green_deform(phi, psi, rest, deformed_cage[b].to(source.dtype), faces))
+    return torch.stack(out)
 
 
 def _fixed_source_cache(net, source, knn):

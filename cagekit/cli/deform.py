@@ -177,8 +177,8 @@ def deform(ctx, source, target, out, method, cage_path, faces, save_cage, symmet
                              symmetry, landmarks, weights, model_path, refine, preview)
     if model_path and coords != "mvc":
         raise click.UsageError("--coords green applies to the per-pair optimisation only; "
-                               "a trained model's cages are bound with mean value "
-                               "coordinates")
+                               "a trained model binds with the coordinates it was "
+                               "trained with (cagekit train --coords)")
     if model_path and target_kind != "full":
         raise click.UsageError("--target-kind partial applies to the per-pair optimisation "
                                "only, not to --model")

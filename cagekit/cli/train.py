@@ -37,6 +37,10 @@ from cagekit.errors import InputError
               help="Samples per shape.")
 @click.option("--bottleneck", default=256, show_default=True, type=click.IntRange(min=1),
               help="Size of the PointNet code.")
+@click.option("--coords", type=click.Choice(["mvc", "green"]), default="mvc",
+              show_default=True,
+              help="Coordinates the model's cages bind the source with (in training and "
+                   "at inference; green drops the paper's MVC term).")
 @click.option("--nc", type=click.Choice(["learned", "identity", "source-invariant"]),
               default="learned", show_default=True, help="The N_c variant.")
 @click.option("--fixed-source", type=click.Path(dir_okay=False), default=None,
@@ -69,7 +73,7 @@ from cagekit.errors import InputError
 @debug_option
 @click.pass_context
 def train(ctx, data, run_dir, epochs, batch_size, lr, device, resume, points, bottleneck,
-          nc, fixed_source, source_cage, no_box_align, symmetry, align, no_augment,
+          coords, nc, fixed_source, source_cage, no_box_align, symmetry, align, no_augment,
           checkpoint_every, max_steps, minutes, seed, as_json):
     """Train N_c and N_d (the paper's networks) on the meshes under DATA_DIR.
 
@@ -98,7 +102,8 @@ def train(ctx, data, run_dir, epochs, batch_size, lr, device, resume, points, bo
     except ImportError as exc:
         raise InputError(f"training needs the learned mode: pip install -e '.[learn]' "
                          f"({exc})") from None
-    model = ModelConfig(bottleneck=bottleneck, nc=nc, box_align=not no_box_align)
+    model = ModelConfig(bottleneck=bottleneck, nc=nc, box_align=not no_box_align,
+                        coords=coords)
     if source_cage is not None and not resume:  # a resumed run keeps its own cage
         model.fixed_cage_v, model.fixed_cage_f = load_source_cage(source_cage,
                                                                   template=fixed_source)
