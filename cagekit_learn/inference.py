@@ -174,8 +174,9 @@ def deform_with_model(model: NeuralCages, source, target, *, points: int | None 
     **refine_options
         When refining, the options of :func:`cagekit.deform` that tune the optimisation
         (``symmetry``, ``weights``, ``samples``, ``shape_points``, ``reference``,
-        ``coords``, ``max_evaluations``, ``tolerance``, ``progress``); the refinement runs
-        in the unit frames the prediction is in (:class:`cagekit.deformation.CageProblem`).
+        ``max_evaluations``, ``tolerance``, ``progress``); the refinement runs in the
+        unit frames the prediction is in (:class:`cagekit.deformation.CageProblem`), with
+        the coordinates the model was trained with (a ``coords`` option is ignored).
 
     Returns
     -------
@@ -212,6 +213,7 @@ def deform_with_model(model: NeuralCages, source, target, *, points: int | None 
     if refine:  # the per-pair optimisation from the prediction, in the unit frames
         warn_outside(Vs_n, cage_n, cage_f, shape="the source", cage="the model's cage")
         solving = {k: refine_options.pop(k) for k in _SOLVE_OPTIONS if k in refine_options}
+        refine_options.pop("coords", None)  # the model's own coordinates, always
         problem = CageProblem.create((Vs_n, Fs), (Vt_n, Ft), (cage_n, cage_f), seed=seed,
                                      coords=_coords_of(model), **refine_options)
         result.set_solution(problem, solve(problem, deformed_n, **solving))

@@ -214,3 +214,7 @@ def test_a_model_trained_with_green_coordinates_deforms_with_them(tmp_path, pair
     expected = bind(source_n, cage_n, result.cage_f, method="green").deform(moved_n)
     np.testing.assert_allclose(result.target_frame.to_unit(result.vertices), expected,
                                atol=1e-9)
+    # --refine optimises under the model's coordinates (the options' coords are ignored)
+    refined = deform_with_model(model, io.load_shape(pair[0]), io.load_shape(pair[1]),
+                                points=128, refine=True, coords="mvc", max_evaluations=5)
+    assert refined.method == "learned+refine" and np.isfinite(refined.vertices).all()
