@@ -212,7 +212,7 @@ class CageEnergy:
 
     def lift(self, C):
         """What the ``W`` matrices act on: ``C``, or ``[C; face_terms(C)]`` (Green)."""
-        return C if self.face_terms is None else np.vstack([C, self.face_terms(C)])
+        return _lifted(C, self.face_terms)
 
     def evaluate(self, C):
         """Weighted energy, its gradient (k, 3) and each active term's unweighted value."""
@@ -266,6 +266,11 @@ class CageEnergy:
         """Weighted energy and its gradient, shape (k, 3)."""
         energy, grad, _ = self.evaluate(C)
         return energy, grad
+
+
+def _lifted(C, face_terms):
+    """``C``, or with Green coordinates ``[C; face_terms(C)]`` (k + m, 3)."""
+    return C if face_terms is None else np.vstack([C, face_terms(C)])
 
 
 # -------------------------------------------------------------------------- the methods
@@ -457,9 +462,8 @@ class CageProblem:
         W_shape = np.ascontiguousarray(W[:n][used])
         box_cage = binding.cage_v * _box_factors(Vs_n, Vt_n, target_kind)
         reference_cage = box_cage if reference == "aligned" else binding.cage_v
-        lifted = (reference_cage if face_terms is None
-                  else np.vstack([reference_cage, face_terms(reference_cage)]))
-        shape_ref = losses.shape_reference(W_shape @ lifted, own, index, mask)
+        shape_ref = losses.shape_reference(W_shape @ _lifted(reference_cage, face_terms),
+                                           own, index, mask)
         parts_matrix = _part_term(Vs_n, Fs, W[:n]) if weights["parts"] else None
         detail = _detail_term(Vs_n, Fs, W[:n]) if weights["detail"] else None
         energy = CageEnergy(W_samples, T, W_shape, shape_ref, binding.cage_f,

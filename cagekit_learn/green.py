@@ -142,9 +142,9 @@ def green_coordinates(points, cage_v, cage_f, chunk_size: int = 1024):
     if not bool((terms[1] > 0).all()):
         raise InputError("Green coordinates need cage faces of positive area")
     # where the core evaluates each point, and which are outside: constants from the core
-    plan = core.evaluation_plan(X.detach().cpu().double().numpy(),
-                                V.detach().cpu().double().numpy(), faces_np)
-    shift = torch.as_tensor(plan.evaluated - plan.points, dtype=X.dtype, device=X.device)
+    points_np = X.detach().cpu().double().numpy()
+    plan = core.evaluation_plan(points_np, V.detach().cpu().double().numpy(), faces_np)
+    shift = torch.as_tensor(plan.evaluated - points_np, dtype=X.dtype, device=X.device)
     Xe = X + shift
     phis, psis = [], []
     for start in range(0, X.shape[0], max(1, int(chunk_size))):

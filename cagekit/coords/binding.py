@@ -113,9 +113,12 @@ class GreenBinding:
 
     def __init__(self, phi: np.ndarray, psi: np.ndarray, cage_v: np.ndarray,
                  cage_f: np.ndarray):
+        from cagekit.coords.green import FaceTerms
+
         self.phi, self.psi = phi, psi
         self.cage_v, self.cage_f = cage_v, cage_f
         self.method = "green"
+        self._face_terms = FaceTerms(cage_v, cage_f)
 
     @property
     def n_points(self) -> int:
@@ -126,7 +129,7 @@ class GreenBinding:
         """Positions of the bound points for moved cage vertices.
 
         ``phi @ new_cage_v + psi @ (s * n')``, with ``n'`` the moved faces' unit normals
-        and ``s`` their stretch factors (:func:`cagekit.coords.green.stretch_factors`).
+        and ``s`` their stretch factors (:class:`cagekit.coords.green.FaceTerms`).
         Raises :class:`cagekit.InputError` as :meth:`CageBinding.deform` does, and for a
         moved cage with a face of zero area (its normal is undefined).
 
@@ -146,14 +149,12 @@ class GreenBinding:
         >>> (b.deform(2 * v + 1).round(12) + 0.0).tolist()  # similarities are exact
         [[2.0, 1.0, 1.0]]
         """
-        from cagekit.coords.green import stretch_factors, unit_normals
-
         new = _checked_cage(new_cage_v, self.cage_v.shape)
-        normals, twice_area = unit_normals(new, self.cage_f)
-        if not np.all(twice_area > 0):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            scaled = self._face_terms(new)  # a face of zero area has no normal: NaN
+        if not np.all(np.isfinite(scaled)):
             raise InputError("the deformed cage has a face of zero area: Green coordinates "
                              "need its normal")
-        scaled = normals * stretch_factors(self.cage_v, new, self.cage_f)[:, None]
         return _finite_positions(_weights_times_vertices(self.phi, new)
                                  + _weights_times_vertices(self.psi,
                                                            np.ascontiguousarray(scaled)))

@@ -54,7 +54,7 @@ from cagekit.frame import bounding_box_diagonal
 __all__ = ["green_coordinates", "evaluation_plan", "EvaluationPlan", "FaceTerms", "stretch_factors",
            "unit_normals", "SNAP", "INSET"]
 
-#: points closer than this to the cage (in cage diagonals) are evaluated INSET inside it
+#: points closer than this to the cage (in cage diagonals) are evaluated INSET from it
 SNAP = 3e-11
 #: how far inside such points are evaluated (cage diagonals): reproduction's error there
 INSET = 3e-11
@@ -343,18 +343,15 @@ class EvaluationPlan:
 
     Attributes
     ----------
-    points : (n, 3) float64
-        The points given.
     evaluated : (n, 3) float64
-        Where the integrals were evaluated: the point, or (within :data:`SNAP` of the
-        cage) :data:`INSET` inside it.
+        Where the integrals were evaluated: the point itself (the same numbers), or
+        (within :data:`SNAP` of the cage) :data:`INSET` from it.
     outside_rows : (p,) int64
         The points outside the cage, extended across ...
     exit_faces : (p,) int64
         ... these faces.
     """
 
-    points: np.ndarray
     evaluated: np.ndarray
     outside_rows: np.ndarray
     exit_faces: np.ndarray
@@ -392,7 +389,7 @@ def _coordinates_and_plan(points, cage_v, cage_f):
     evaluated = px.copy()
     no_rows = np.zeros(0, dtype=np.int64)
     if not n:
-        return phi, psi, EvaluationPlan(pts, pts.copy(), no_rows, no_rows)
+        return phi, psi, EvaluationPlan(pts.copy(), no_rows, no_rows)
     dist = np.empty(n)
     _green_kernel(px, cv, faces, *constants[:3], normals, *constants[3:], chunks, phi, psi,
                   dist)
@@ -416,8 +413,8 @@ def _coordinates_and_plan(points, cage_v, cage_f):
         exit_faces = _exit_faces(evaluated[rows], cv, faces, twice)
         _extend_outside(evaluated[rows], exit_faces, cv, faces, normals, rows, phi, psi)
     psi *= diag
-    plan = EvaluationPlan(pts, np.where(evaluated == px, pts, evaluated * diag + centre),
-                          rows, exit_faces)
+    plan = EvaluationPlan(np.where(evaluated == px, pts, evaluated * diag + centre), rows,
+                          exit_faces)
     return phi, psi, plan
 
 
