@@ -1,7 +1,9 @@
 """Speed of Green coordinates beside mean value coordinates, on the same cages and points.
 
 Cases of ``bench_mvc.py``: (a) 15,000 points in a 216-face cage, (b) 100,000 points in a
-1,000-face cage (deterministic star-shaped cages, points inside). Printed per case: the
+1,000-face cage (deterministic star-shaped cages, points inside); (c) the vertices of the
+largest real chair of ``sweethome3d-furniture`` (furniture catalogs, at most 15,000
+vertices) in its 200-face fitted cage, when the package is installed. Printed per case: the
 binding's point-triangle pairs per second of each (best of three), and a deformation's
 seconds once bound (a random motion of the cage), with the ratios the issue asks for:
 Green's binding at least 1/3 of MVC's pairs/s, its deformation under 2x MVC's.
@@ -18,6 +20,7 @@ import json
 import os
 import sys
 import time
+import warnings
 from functools import partial
 
 import numpy as np
@@ -39,9 +42,34 @@ def best_of(function, repeats=3):
     return best, result
 
 
-def run_case(label, n, faces):
-    v, f = star_cage(faces)
-    p = interior_points(v, f, n)
+def real_case():
+    """The largest chair of sweethome3d-furniture's furniture catalogs (at most 15,000
+    vertices) and its 200-face fitted cage, or None without the package."""
+    from bench_deform import MAX_REAL_VERTICES, furniture_kind
+
+    from cagekit.datasets.sweethome3d import FURNITURE_CATALOGS, models
+    from cagekit.errors import InputError
+    from cagekit.fitting import fit_cage
+    from cagekit.io import load_mesh
+
+    try:
+        found = models(catalogs=FURNITURE_CATALOGS)
+    except InputError as exc:
+        print(f"sweethome3d-furniture not found ({exc}): the real case is skipped")
+        return None
+    meshes = [load_mesh(m.path) for m in found if furniture_kind(m.name) == "chair"]
+    V, F = max((m for m in meshes if len(m[0]) <= MAX_REAL_VERTICES), key=lambda m: len(m[0]))
+    cage_v, cage_f = fit_cage(V, F, faces=200, seed=0)
+    return V, cage_v, cage_f
+
+
+def run_case(label, n, faces, real=None):
+    if real is None:
+        v, f = star_cage(faces)
+        p = interior_points(v, f, n)
+    else:
+        p, v, f = real
+        n = len(p)
     moved = v + 0.05 * np.random.default_rng(3).normal(size=v.shape) * np.ptp(v, axis=0)
     out = {"case": label, "points": n, "faces": len(f)}
     for method in ("mvc", "green"):
@@ -60,6 +88,7 @@ def main(argv=None):
     parser.add_argument("--threads", type=int, default=None, help="numba threads")
     parser.add_argument("--json", default=None)
     args = parser.parse_args(argv)
+    warnings.simplefilter("ignore")  # real files' repairs are reported by bench_assets.py
     import numba
 
     if args.threads:
@@ -67,9 +96,13 @@ def main(argv=None):
     print(f"# {os.cpu_count()} cpus, numba threads {numba.get_num_threads()}")
     print(f"{'case':<26}{'coords':<8}{'bind s':>9}{'Mpairs/s':>10}{'deform s':>10}")
     results = []
-    for label, n, faces in (("(a) 15k pts, 216 faces", 15_000, 216),
-                            ("(b) 100k pts, 1000 faces", 100_000, 1000)):
-        r = run_case(label, n, faces)
+    cases = [("(a) 15k pts, 216 faces", 15_000, 216, None),
+             ("(b) 100k pts, 1000 faces", 100_000, 1000, None)]
+    real = real_case()
+    if real is not None:
+        cases.append((f"(c) real chair, {len(real[0]) // 1000}k", 0, 0, real))
+    for label, n, faces, shape in cases:
+        r = run_case(label, n, faces, shape)
         results.append(r)
         for method in ("mvc", "green"):
             m = r[method]
