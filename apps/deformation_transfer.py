@@ -65,8 +65,8 @@ class CharacterCage:
         Its landmark errors, consistency, checks and alignment.
     match : cagekit.landmarks.LandmarkMatch
     binding : cagekit.surface_binding.SurfaceBinding
-        The character bound to ``C_c``: mean value coordinates, mended along the mesh
-        where the cage folds between touching parts.
+        The character bound to ``C_c``: mean value coordinates (or Green coordinates),
+        mended along the mesh where the cage folds between touching parts.
     """
 
     vertices: np.ndarray
@@ -81,7 +81,8 @@ class CharacterCage:
 
 def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
                   character_f, character_landmarks, *, align: str = "box",
-                  template_name=None, character_name=None) -> CharacterCage:
+                  coords: str = "mvc", template_name=None,
+                  character_name=None) -> CharacterCage:
     """Fit the template's cage to a character by its landmarks and bind the character.
 
     Parameters
@@ -97,6 +98,10 @@ def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
     align : {"box", "similarity"}, default "box"
         How the rest poses are aligned before the fit: bounding-box centres and heights
         (:func:`cagekit.alignment.box_alignment`), or the landmarks' similarity.
+    coords : {"mvc", "green"}, default "mvc"
+        How the character follows its cage (:func:`cagekit.surface_binding.bind_surface`):
+        mean value coordinates, or Green coordinates where no mending is needed. The
+        template's own cage fit is the same either way.
     template_name, character_name : str, optional
         The landmark files, named in errors.
 
@@ -137,7 +142,8 @@ def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
                              alignment=alignment)
     # the fit checked this cage (closed, no crossing, every vertex inside)
     weights = bind(character_v, fit.cage_v, fit.cage_f, check=False).weights
-    binding = bind_surface(character_v, character_f, fit.cage_v, fit.cage_f, weights=weights)
+    binding = bind_surface(character_v, character_f, fit.cage_v, fit.cage_f, weights=weights,
+                           coords=coords)
     fit.checks["coupled"] = check_coupling(binding)
     fit.checks["mended"] = float(binding.mended.mean())
     return CharacterCage(vertices=character_v, faces=np.asarray(character_f, np.int64),

@@ -13,22 +13,32 @@ rotated by an angle that ramps from 0 to 90 degrees across the joint); the limb'
 conformal distortion and its volume change under each coordinates; ``--picture`` draws
 the rest limb and both results with their cages.
 
-(a) The transfer benchmark is not here: ``cagekit transfer`` binds with mean value
-coordinates only.
+(a) The transfer benchmark: the characters of ``bench_transfer.py``'s data set
+(``apps.humanoid_data``, written when missing), forward direction (template rest -> its
+example poses, ground truth the character posed by the rig), each character's cage
+fitted once and the character bound to it by each coordinates
+(:func:`cagekit.surface_binding.bind_surface` with ``coords``); the pose rule on the
+classical template cage, refined (the command's default) and unrefined (the cage's result
+as it is): vertex error (% of height), dCotLap x1e3, the conformal distortion of the
+result's faces, torn edges per mille.
 
 Usage::
 
-    python benchmarks/bench_green_compare.py [--cache /tmp/cgal] [--picture PNG] [--json FILE]
+    python benchmarks/bench_green_compare.py [--cache /tmp/cgal] [--picture PNG]
+        [--humanoid out/humanoid] [--poses 20] [--transfer-picture PNG]
+        [--only limb|transfer|variations] [--json FILE]
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import sys
 import time
 import warnings
+from pathlib import Path
 
 import numpy as np
 
@@ -151,15 +161,96 @@ def articulation(picture=None):
     return out
 
 
+def transfers(data: Path, poses: int, picture=None, shown="arms_down"):
+    """(a): every character of the humanoid data set, forward, MVC beside Green;
+    ``picture``: the ground truth, MVC's and Green's transfers (refined) of character
+    ``shown`` in the first four poses."""
+    import bench_transfer as bt
+
+    from apps import deformation_transfer as dt
+    from apps import humanoid_data
+    from cagekit import io
+    from cagekit.landmarks import load_landmarks
+    from cagekit.surface_binding import bind_surface
+
+    if not (data / "manifest.json").exists():
+        humanoid_data.write(data, seed=0)
+    manifest = json.loads((data / "manifest.json").read_text())
+    template = io.load_mesh(data / "template.obj")
+    cage_v, cage_f = io.load_mesh(data / "template_cage.obj")
+    marks_t = load_landmarks(data / "template_landmarks.json")
+    pose_paths = sorted((data / "poses").glob("pose_???.obj"))[:poses]
+    examples = [io.load_mesh(p) for p in pose_paths]
+    cages = [c["classical"] for c in bt.template_cages(template, (cage_v, cage_f), examples,
+                                                       None, 0)]
+    methods = [(c, refine) for c in COORDS for refine in (True, False)]
+    keys = ("error_pct", "dcotlap_x1e3", "conformal", "torn_permille", "seconds")
+    rows, pictured = [], {}
+    names = list(manifest["bodies"]) + list(manifest.get("characters", []))
+    print(f"\n(a) transfer, forward, {len(examples)} poses: mean over poses")
+    print(f"{'character':<12}{'method':<16}" + "".join(f"{k:>14}" for k in keys))
+    for name in names:
+        (Vc, Fc), marks_c = bt.load_character(data, name)
+        truths = [io.load_mesh(data / "truth" / name / p.name)[0] for p in pose_paths]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            try:
+                char = dt.fit_character(template[0], cage_v, cage_f, marks_t, Vc, Fc, marks_c)
+            except Exception as exc:  # a character whose cage cannot be fitted: listed
+                print(f"{name:<12}cage fit failed: {exc}")
+                continue
+            chars = {"mvc": char, "green": dataclasses.replace(char, binding=bind_surface(
+                Vc, Fc, char.cage_v, char.cage_f, weights=char.binding.weights,
+                coords="green"))}
+            for coords, refine in methods:
+                per = []
+                for i, (cage, truth) in enumerate(zip(cages, truths)):
+                    t0 = time.perf_counter()
+                    X = dt.transfer(chars[coords], cage, "pose", refine=refine)
+                    seconds = time.perf_counter() - t0
+                    if picture and name == shown and refine and i < 4:
+                        pictured.setdefault(coords, []).append((X, Fc))
+                        pictured.setdefault("truth", [])
+                        if len(pictured["truth"]) <= i:
+                            pictured["truth"].append((truth, Fc))
+                    per.append({**bt.scores(Vc, Fc, truth, X), "seconds": seconds,
+                                "conformal": conformal_distortion(Vc, Fc, X)["mean"]})
+                row = {k: float(np.mean([p[k] for p in per])) for k in keys}
+                row.update(character=name, coords=coords, refine=refine)
+                rows.append(row)
+                method = f"{coords} {'refined' if refine else 'unrefined'}"
+                print(f"{name:<12}{method:<16}" + "".join(f"{row[k]:>14.3f}" for k in keys),
+                      flush=True)
+    print(f"{'mean':<12}")
+    for coords, refine in methods:
+        sel = [r for r in rows if r["coords"] == coords and r["refine"] == refine]
+        method = f"{coords} {'refined' if refine else 'unrefined'}"
+        print(f"{'':<12}{method:<16}" + "".join(
+            f"{np.mean([r[k] for r in sel]):>14.3f}" for k in keys))
+    if pictured:
+        dt.render_grid(picture, [pictured["truth"], pictured["mvc"], pictured["green"]],
+                       titles=[p.stem for p in pose_paths[:4]],
+                       labels=[f"{shown}: ground truth", "MVC (refined)", "Green (refined)"])
+        print(f"picture: {picture}")
+    return rows
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cache", default="/tmp/cgal")
     parser.add_argument("--picture", default=None)
     parser.add_argument("--json", default=None)
-    parser.add_argument("--limb-only", action="store_true")
+    parser.add_argument("--humanoid", default="out/humanoid", type=Path)
+    parser.add_argument("--poses", default=20, type=int)
+    parser.add_argument("--transfer-picture", default=None)
+    parser.add_argument("--only", choices=("limb", "transfer", "variations"), default=None)
     args = parser.parse_args()
-    report = {"articulation": articulation(args.picture)}
-    if not args.limb_only:
+    report = {}
+    if args.only in (None, "limb"):
+        report["articulation"] = articulation(args.picture)
+    if args.only in (None, "transfer"):
+        report["transfer"] = transfers(args.humanoid, args.poses, args.transfer_picture)
+    if args.only in (None, "variations"):
         report["variations"] = variations(args.cache)
     if args.json:
         with open(args.json, "w") as fh:

@@ -24,6 +24,10 @@ only once the cage moves: :meth:`SurfaceBinding.deform` then takes the cage's re
 proposal for :func:`cagekit.robust_arap.robust_arap`, which keeps the mesh locally rigid and
 lets a patch that disagrees with the surface around it follow its neighbours (mended points
 start with little trust).
+
+With ``coords="green"`` the points left alone follow the cage by Green coordinates (details
+keep their proportions where the cage stretches); the mended points keep the MVC blend
+above, which is what lets them ignore a fold (Green coordinates see through one as MVC do).
 """
 
 from __future__ import annotations
@@ -34,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cagekit.cage import unique_edges
-from cagekit.errors import CageFitError, CagekitWarning
+from cagekit.errors import CageFitError, CagekitWarning, InputError
 from cagekit.geometry import as_vertices, uniform_laplacian, vertex_rotations
 
 __all__ = ["SurfaceBinding", "bind_surface", "negative_mass", "coupled_share",
@@ -115,6 +119,9 @@ class SurfaceBinding:
         The mesh bound.
     faces : (m, 3) int64
         Its triangles.
+    green : cagekit.coords.GreenBinding or None
+        With ``coords="green"``: the points not mended, in Green coordinates (the rows of
+        ``~mended``, in order); None: every point follows ``weights``.
     """
 
     weights: np.ndarray
@@ -126,6 +133,7 @@ class SurfaceBinding:
     rest_cage: np.ndarray
     rest_vertices: np.ndarray
     faces: np.ndarray
+    green: object = None
 
     def deform(self, cage_v, *, refine: bool = True) -> np.ndarray:
         """The mesh for the cage moved.
@@ -146,6 +154,8 @@ class SurfaceBinding:
 
         C = np.asarray(cage_v, dtype=np.float64)
         out = self.weights @ C
+        if self.green is not None:
+            out[~self.mended] = self.green.deform(C)
         scale = _cage_scale(self.rest_cage, C)
         if self.mended.any():
             idx = np.flatnonzero(self.mended)
@@ -159,7 +169,8 @@ class SurfaceBinding:
                            edges=self.edges).vertices
 
 
-def bind_surface(vertices, faces, cage_v, cage_f, *, weights=None) -> SurfaceBinding:
+def bind_surface(vertices, faces, cage_v, cage_f, *, weights=None,
+                 coords: str = "mvc") -> SurfaceBinding:
     """Bind a mesh to a cage, mending its coordinates where the cage folds.
 
     Parameters
@@ -173,6 +184,10 @@ def bind_surface(vertices, faces, cage_v, cage_f, *, weights=None) -> SurfaceBin
     cage_f : (f, 3) array_like of int
     weights : (n, k) array_like of float, optional
         The mean value coordinates of ``vertices``, when already computed.
+    coords : {"mvc", "green"}, default "mvc"
+        How the points that need no mending follow the cage: their mean value
+        coordinates, or Green coordinates (``SurfaceBinding.green``). The mending, and
+        the mended points, use mean value coordinates either way.
 
     Returns
     -------
@@ -203,9 +218,14 @@ def bind_surface(vertices, faces, cage_v, cage_f, *, weights=None) -> SurfaceBin
         W = _mend(W, mass, mended, edges)
     base = W @ C
     offsets = np.where(mended[:, None], V - base, 0.0)
+    green = None
+    if coords == "green":
+        green = bind(V[~mended], C, cage_f, method="green", check=False)
+    elif coords != "mvc":
+        raise InputError(f"unknown coordinates {coords!r}; available: mvc, green")
     return SurfaceBinding(weights=W, offsets=offsets, mended=mended, coupled=coupled,
                           edges=edges, rest_base=base, rest_cage=C, rest_vertices=V,
-                          faces=F)
+                          faces=F, green=green)
 
 
 def _mend(W, mass, mended, edges) -> np.ndarray:

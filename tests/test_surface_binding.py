@@ -6,7 +6,7 @@ from builders import random_rotation
 
 from cagekit.cage import check_cage
 from cagekit.coords import bind
-from cagekit.errors import CageFitError, CagekitWarning
+from cagekit.errors import CageFitError, CagekitWarning, InputError
 from cagekit.shapes import box_cage
 from cagekit.surface_binding import (
     FREE_MASS,
@@ -115,6 +115,41 @@ def test_rest_and_similar_cages_give_the_mesh_back_and_moved_alike(seed):
         np.testing.assert_allclose(b.deform(cage_v, refine=refine), V, atol=1e-9)
         np.testing.assert_allclose(b.deform(2.5 * cage_v @ R.T + t, refine=refine),
                                    2.5 * V @ R.T + t, atol=1e-8)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_green_binding_reproduces_is_similarity_exact_and_green_where_not_mended(seed):
+    cage_v, cage_f = _slot_cage(0.02)
+    V, F = _sheet(0.02)
+    b = bind_surface(V, F, cage_v, cage_f, coords="green")
+    mvc = bind_surface(V, F, cage_v, cage_f)
+    assert b.green is not None and b.green.n_points == int((~b.mended).sum())
+    np.testing.assert_array_equal(b.mended, mvc.mended)  # the mending is MVC's either way
+    R = random_rotation(seed)
+    for refine in (False, True):
+        np.testing.assert_allclose(b.deform(cage_v, refine=refine), V, atol=1e-9)
+        np.testing.assert_allclose(b.deform(2.5 * cage_v @ R.T + 1.0, refine=refine),
+                                   2.5 * V @ R.T + 1.0, atol=1e-8)
+    # a stretch: the free points follow Green coordinates (not the affine map MVC gives),
+    # the mended ones the same MVC blend as before, their detail turned with their ring
+    stretched = cage_v * [2.0, 1.0, 0.5]
+    out = b.deform(stretched, refine=False)
+    green = bind(V[~b.mended], cage_v, cage_f, method="green").deform(stretched)
+    np.testing.assert_allclose(out[~b.mended], green, atol=1e-12)
+    assert np.abs(green - mvc.deform(stretched, refine=False)[~b.mended]).max() > 1e-3
+    detail = out[b.mended] - (mvc.weights @ stretched)[b.mended]
+    scale = np.sqrt(((stretched - stretched.mean(0)) ** 2).sum(1).mean()
+                    / ((cage_v - cage_v.mean(0)) ** 2).sum(1).mean())
+    np.testing.assert_allclose(np.linalg.norm(detail, axis=1),
+                               scale * np.linalg.norm(mvc.offsets[b.mended], axis=1),
+                               atol=1e-12)
+
+
+def test_unknown_coordinates_are_refused():
+    cage_v, cage_f = box_cage()
+    with pytest.raises(InputError, match="unknown coordinates 'harmonic'"):
+        bind_surface(np.zeros((1, 3)), np.zeros((0, 3), int), cage_v, cage_f,
+                     coords="harmonic")
 
 
 def test_a_point_cloud_or_an_open_cage_keeps_its_mean_value_coordinates():

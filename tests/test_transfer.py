@@ -135,6 +135,32 @@ def test_a_character_in_another_rest_pose_reaches_the_target_pose(data, tmp_path
         assert pose < rest / 5 and pose < errors["offsets", name][0] / 2, errors
 
 
+def test_green_coordinates_transfer_a_character_as_well(data, tmp_path):
+    # the character follows its cage by Green coordinates; the pose is reached as with MVC
+    out, _ = data
+    inputs = [*_inputs(out)[:3], out / "characters" / "a_pose.obj",
+              out / "characters" / "a_pose.picked"]
+    Vc, Fc = io.load_mesh(out / "characters" / "a_pose.obj")
+    height = np.ptp(Vc[:, 1])
+    errors = {}
+    for coords in ("mvc", "green"):
+        result = _run([*inputs, out / "poses", "-o", tmp_path / coords, "--coords", coords])
+        assert result.exit_code == 0, result.output
+        report = json.loads((tmp_path / coords / "report.json").read_text())
+        assert report["coords"] == coords
+        for name in ("pose_000", "pose_001"):
+            X, F = io.load_mesh(tmp_path / coords / f"{name}.obj")
+            assert np.array_equal(F, Fc) and np.isfinite(X).all()
+            truth, _ = io.load_mesh(out / "truth" / "a_pose" / f"{name}.obj")
+            rest = np.linalg.norm(Vc - truth, axis=1).mean() / height
+            errors[coords, name] = np.linalg.norm(X - truth, axis=1).mean() / height
+            assert errors[coords, name] < rest / 5, (coords, errors, rest)
+    # the two coordinates give different characters (Green is not affine-invariant)
+    X_mvc, _ = io.load_mesh(tmp_path / "mvc" / "pose_000.obj")
+    X_green, _ = io.load_mesh(tmp_path / "green" / "pose_000.obj")
+    assert np.abs(X_mvc - X_green).max() > 1e-4 * height
+
+
 def test_the_reverse_example_gives_the_template_rest_pose(data, tmp_path):
     # template in a rest-like pose -> template T rest; the character must end in the T
     out, _ = data

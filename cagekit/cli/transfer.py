@@ -15,6 +15,7 @@ from pathlib import Path
 import click
 
 from cagekit.cli.common import (
+    COORDINATE_METHODS,
     debug_option,
     emit_json,
     json_option,
@@ -48,6 +49,10 @@ AUTO = "auto"
                    "cage deformation instead of the per-pair fit.")
 @click.option("--align", type=click.Choice(["box", "similarity"]), default="box",
               show_default=True, help="How the two rest poses are aligned before the fit.")
+@click.option("--coords", type=click.Choice(list(COORDINATE_METHODS)), default="mvc",
+              show_default=True,
+              help="How the character follows its cage: mean value or Green coordinates "
+                   "(the template's cage fit is the same either way).")
 @click.option("--cage-faces", default=200, show_default=True,
               type=click.IntRange(min=80, max=10_000),
               help="Face budget when TEMPLATE_CAGE is 'auto' (the character fit takes "
@@ -59,8 +64,8 @@ AUTO = "auto"
 @debug_option
 @click.pass_context
 def transfer(ctx, template, template_cage, template_landmarks, character,
-             character_landmarks, poses, out_dir, rule, model_path, align, cage_faces,
-             grid_path, seed, as_json):
+             character_landmarks, poses, out_dir, rule, model_path, align, coords,
+             cage_faces, grid_path, seed, as_json):
     """Transfer the TEMPLATE's POSES to a novel CHARACTER given matching landmarks.
 
     TEMPLATE and CHARACTER are meshes in rest pose (any mesh format cagekit reads, any
@@ -93,7 +98,7 @@ def transfer(ctx, template, template_cage, template_landmarks, character,
     (Vt, Ft), (cage_v, cage_f), marks_t, (Vc, Fc), marks_c, pose_meshes, model = loaded
     try:
         char = dt.fit_character(Vt, cage_v, cage_f, marks_t, Vc, Fc, marks_c, align=align,
-                                template_name=template_landmarks,
+                                coords=coords, template_name=template_landmarks,
                                 character_name=character_landmarks)
     except InputError as exc:
         if exc.path is not None:
@@ -109,7 +114,7 @@ def transfer(ctx, template, template_cage, template_landmarks, character,
     seconds = {"load": t_loaded - start, "fit": t_fitted - t_loaded,
                "transfer": time.perf_counter() - t_fitted}
     report = _report(out, char, rows, seconds, start, template, template_cage, character,
-                     model, rule, align, grid_path)
+                     model, rule, align, coords, grid_path)
     if as_json:
         emit_json(report)
     else:
@@ -249,7 +254,7 @@ def _write(out, char, pose_paths, names, results, pose_meshes, grid_path):
 
 
 def _report(out, char, rows, seconds, start, template, template_cage, character, model,
-            rule, align, grid_path) -> dict:
+            rule, align, coords, grid_path) -> dict:
     """Write report.json and return it."""
     from cagekit.files import atomic_output
 
@@ -257,7 +262,7 @@ def _report(out, char, rows, seconds, start, template, template_cage, character,
     report = {
         "template": template, "template_cage": template_cage, "character": character,
         "mode": "learned" if model is not None else "classical", "rule": rule,
-        "align": align,
+        "align": align, "coords": coords,
         "landmarks": {"matched": len(char.match.labels),
                       "template_only": char.match.source_only,
                       "character_only": char.match.target_only},
