@@ -5,11 +5,11 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-emulated test-slow lint assets bench bench-assets bench-fit-cage bench-deform bench-learn bench-transfer bench-amplify venv clean
+.PHONY: blender-venv test-blender blender-extension blender-render bench-blender demo test test-emulated test-slow lint assets bench bench-assets bench-fit-cage bench-deform bench-learn bench-transfer bench-amplify venv clean
 
 $(STAMP): setup.cfg pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/pip install -q -e '.[dev,learn,cluster]'
+	$(BIN)/pip install -q -e '.[dev,learn,cluster]' -c constraints.txt
 	touch $(STAMP)
 
 venv: $(STAMP)
@@ -76,6 +76,38 @@ bench-transfer: $(STAMP)
 bench-amplify: $(STAMP)
 	$(BIN)/pip install -q -e '.[dev,bench,cluster]'
 	$(BIN)/python benchmarks/bench_amplify.py --json out/bench_amplify.json --sheet docs/images/amplify_sheet.png
+
+# Blender as a Python module (bpy 5.0.1, about 370 MB) in its own environment: Blender 5.0's
+# Python has numpy 1.26.4, which the main environment's pins exclude (apps/blender)
+BLENDER_VENV := .venv-blender
+BLENDER_BIN := $(BLENDER_VENV)/bin
+BLENDER_STAMP := $(BLENDER_VENV)/.installed
+$(BLENDER_STAMP): setup.cfg pyproject.toml apps/blender/constraints.txt
+	test -x $(BLENDER_BIN)/python || $(PYTHON) -m venv $(BLENDER_VENV)
+	$(BLENDER_BIN)/pip install -q -e '.[dev,blender]' -c apps/blender/constraints.txt
+	touch $(BLENDER_STAMP)
+
+blender-venv: $(BLENDER_STAMP)
+
+# the add-on's tests with the real bpy (marked blender; the default run skips them)
+test-blender: $(BLENDER_STAMP)
+	$(BLENDER_BIN)/python -m pytest -q -p no:cacheprovider -m blender tests
+
+# the installable Blender extension (out/blender/cagekit-0.1.0-linux_x64.zip): the add-on with
+# the wheels of cagekit and its dependencies for Blender 5.0's Python (downloaded from PyPI),
+# then installed and run once in a throwaway Blender user folder
+blender-extension: $(BLENDER_STAMP)
+	$(BLENDER_BIN)/python apps/blender/build_extension.py --out out/blender --check
+
+# the demo rendered in Blender (Cycles on the CPU, about 2 min on 2 cores): out/blender_demo.png
+blender-render: $(BLENDER_STAMP)
+	mkdir -p out
+	$(BLENDER_BIN)/python apps/blender/render_demo.py --out out/blender_demo.png
+
+# cagekit's live binding against Blender's Mesh Deform and Surface Deform, in one bpy run
+bench-blender: $(BLENDER_STAMP)
+	mkdir -p out
+	$(BLENDER_BIN)/python benchmarks/bench_blender.py --json out/bench_blender.json
 
 clean:
 	rm -rf out .pytest_cache build *.egg-info
