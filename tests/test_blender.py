@@ -342,3 +342,23 @@ def test_progress_reports_and_cancels_between_steps():
     with pytest.raises(Cancelled):
         progress(3, 4)
     assert progress.done == 2  # nothing recorded after the cancel
+
+
+def test_a_deleted_bound_mesh_frees_its_binding_and_its_name_is_not_confused():
+    shape, cage = _shape_and_cage()
+    _select([shape], cage)
+    _run("bind")
+    _move_cage(cage, amount=0.01)
+    assert "shape" in live._runtime
+    bpy.data.objects.remove(shape)
+    _move_cage(cage, seed=1, amount=0.01)
+    assert "shape" not in live._runtime  # dropped at the next update
+    # a new mesh under the old name, bound to the same cage, gets its own binding
+    other = _object("shape", *io.load_mesh(DATA / "shape.obj"))
+    other.scale = (0.5, 0.5, 0.5)
+    bpy.context.view_layer.update()
+    _select([other], cage)
+    _run("bind", coords="green")
+    _move_cage(cage, seed=2, amount=0.01)
+    got = meshes.local_vertices(other)
+    assert np.abs(got - _expected(other, cage, "green")).max() <= 1e-9

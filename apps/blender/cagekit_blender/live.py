@@ -15,6 +15,8 @@ would overwrite ours).
 
 from __future__ import annotations
 
+import uuid
+
 import bpy
 import numpy as np
 from bpy.app.handlers import persistent
@@ -26,6 +28,10 @@ REST = "cagekit_rest"
 REST_MATRIX = "cagekit_rest_matrix"
 REST_CAGE = "cagekit_rest_cage"
 COORDS = "cagekit_coords"
+#: a fresh token per bind: tells a cached binding from a stale one (an object deleted and
+#: another given its name, a rebind)
+TOKEN = "cagekit_bind_id"
+KEYS = (REST, REST_MATRIX, REST_CAGE, COORDS, TOKEN)
 
 #: object name -> (rest key, cagekit binding, last cage seen (k, 3) or None)
 _runtime: dict[str, list] = {}
@@ -58,6 +64,7 @@ def bind_object(obj, cage, coords: str, binding) -> None:
     obj[REST_MATRIX] = meshes.matrix(obj).ravel()
     obj[REST_CAGE] = binding.cage_v.ravel()
     obj[COORDS] = coords
+    obj[TOKEN] = uuid.uuid4().hex
     obj.cagekit_cage = cage
     _runtime[obj.name] = [_key(obj), binding, binding.cage_v.copy()]
 
@@ -66,9 +73,8 @@ def unbind_object(obj) -> None:
     """Give ``obj`` back its rest vertices and forget its binding."""
     rest = _array(obj[REST])
     if len(rest) == len(obj.data.vertices):
-        obj.data.vertices.foreach_set("co", rest.astype(np.float32).ravel())
-        obj.data.update()
-    for name in (REST, REST_MATRIX, REST_CAGE, COORDS):
+        meshes.set_local_vertices(obj, rest)
+    for name in KEYS:
         del obj[name]
     obj.cagekit_cage = None
     _runtime.pop(obj.name, None)
@@ -76,8 +82,7 @@ def unbind_object(obj) -> None:
 
 def _key(obj) -> tuple:
     """Tells whether a cached binding still belongs to the object's stored rest state."""
-    return (obj.cagekit_cage.name, len(obj[REST]), float(sum(obj[REST_CAGE][:6])),
-            str(obj[COORDS]))
+    return obj.cagekit_cage.name, str(obj.get(TOKEN, ""))
 
 
 def binding_of(obj):
@@ -113,13 +118,14 @@ def update(obj, *, force: bool = False) -> bool:
 
 def update_all(*, force: bool = False) -> int:
     """:func:`update` every bound object; the number moved."""
-    moved = 0
-    for obj in list(bpy.data.objects):
-        if is_bound(obj):
-            try:
-                moved += update(obj, force=force)
-            except Exception as exc:  # noqa: BLE001 - a handler must never raise
-                print(f"cagekit: {obj.name}: {' '.join(str(exc).split())}")
+    moved, bound = 0, [obj for obj in bpy.data.objects if is_bound(obj)]
+    for name in set(_runtime) - {obj.name for obj in bound}:  # deleted or unbound
+        del _runtime[name]
+    for obj in bound:
+        try:
+            moved += update(obj, force=force)
+        except Exception as exc:  # noqa: BLE001 - a handler must never raise
+            print(f"cagekit: {obj.name}: {' '.join(str(exc).split())}")
     return moved
 
 

@@ -34,7 +34,7 @@ def _copy_with(obj, name: str, V, collection):
     new.data = obj.data.copy()
     new.name = new.data.name = name
     new.animation_data_clear()
-    for key in (live.REST, live.REST_MATRIX, live.REST_CAGE, live.COORDS):
+    for key in live.KEYS:
         if key in new:
             del new[key]
     new.cagekit_cage = None
