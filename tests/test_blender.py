@@ -362,3 +362,31 @@ def test_a_deleted_bound_mesh_frees_its_binding_and_its_name_is_not_confused():
     _move_cage(cage, seed=2, amount=0.01)
     got = meshes.local_vertices(other)
     assert np.abs(got - _expected(other, cage, "green")).max() <= 1e-9
+
+
+def test_the_panel_draws_and_fills_the_operators_from_the_scene_settings():
+    from types import SimpleNamespace
+    from unittest import mock
+
+    from cagekit_blender.panel import CAGEKIT_PT_panel
+
+    shape, cage = _shape_and_cage()
+    _select([shape], cage)
+    _run("bind")
+    coll = bpy.data.collections.new("things")
+    settings = bpy.context.scene.cagekit
+    settings.template, settings.collection, settings.variations = shape, coll, 7
+    _select([], shape)
+    layout = mock.MagicMock()
+    operators = {}
+    layout.column.return_value.operator.side_effect = (
+        lambda name: operators.setdefault(name, SimpleNamespace()))
+    CAGEKIT_PT_panel.draw(SimpleNamespace(layout=layout), bpy.context)
+    assert {"cagekit.fit_cage", "cagekit.deform_to_target", "cagekit.transfer_pose",
+            "cagekit.amplify"} <= set(operators)
+    assert operators["cagekit.transfer_pose"].template == "shape"
+    assert operators["cagekit.transfer_pose"].character == ""
+    assert (operators["cagekit.amplify"].collection, operators["cagekit.amplify"].variations) \
+        == ("things", 7)
+    labels = [c.kwargs.get("text", "") for c in layout.column.return_value.label.call_args_list]
+    assert "shape: bound to cage (mvc)" in labels
