@@ -390,3 +390,81 @@ def test_the_panel_draws_and_fills_the_operators_from_the_scene_settings():
         == ("things", 7)
     labels = [c.kwargs.get("text", "") for c in layout.column.return_value.label.call_args_list]
     assert "shape: bound to cage (mvc)" in labels
+
+
+class _FakeJob:
+    """A :class:`cagekit_blender.jobs.Job` outside Blender's operator machinery, with a
+    computation that waits for a gate, so the modal path can be driven step by step."""
+
+    def __init__(self, gate):
+        import threading
+
+        self.gate, self.applied, self.reports = gate, [], []
+        self.started = threading.Event()
+
+    def gather(self, context):
+        return 21
+
+    def compute(self, inputs, progress):
+        progress(1, 2, "halfway")
+        self.started.set()
+        self.gate.wait(10)
+        progress(2, 2)  # raises Cancelled once Esc was pressed
+        return 2 * inputs
+
+    def apply(self, context, result):
+        self.applied.append(result)
+
+    def report(self, kind, text):
+        self.reports.append((kind, text))
+
+
+def _fake_context():
+    from types import SimpleNamespace
+    from unittest import mock
+
+    return SimpleNamespace(window_manager=mock.MagicMock(), window=None,
+                           workspace=mock.MagicMock())
+
+
+def _modal_job(gate):
+    from cagekit_blender.jobs import Job
+
+    cls = type("Job", (_FakeJob, Job), {"label": "testing"})
+    return cls(gate)
+
+
+def test_the_modal_path_shows_progress_then_applies_in_the_main_thread():
+    import threading
+    from types import SimpleNamespace
+
+    gate, context = threading.Event(), _fake_context()
+    job = _modal_job(gate)
+    assert job.invoke(context, None) == {"RUNNING_MODAL"}
+    job.started.wait(10)
+    timer = SimpleNamespace(type="TIMER")
+    assert job.modal(context, timer) == {"RUNNING_MODAL"} and job.applied == []
+    context.workspace.status_text_set.assert_called_with(
+        "cagekit: testing 50% halfway (Esc to cancel)")
+    assert job.modal(context, SimpleNamespace(type="MOUSEMOVE")) == {"PASS_THROUGH"}
+    gate.set()
+    job._thread.join(10)
+    assert job.modal(context, timer) == {"FINISHED"} and job.applied == [42]
+    context.workspace.status_text_set.assert_called_with(None)
+
+
+def test_esc_cancels_and_nothing_is_applied():
+    import threading
+    from types import SimpleNamespace
+
+    gate, context = threading.Event(), _fake_context()
+    job = _modal_job(gate)
+    job.invoke(context, None)
+    job.started.wait(10)
+    assert job.modal(context, SimpleNamespace(type="ESC")) == {"CANCELLED"}
+    gate.set()
+    job._thread.join(10)
+    assert job.applied == [] and "cancelled" in job.reports[-1][1]
+    from cagekit_blender.jobs import Cancelled
+
+    assert isinstance(job._outcome["error"], Cancelled)
