@@ -267,12 +267,16 @@ def test_deform_needs_one_source_and_a_target():
     _assert_one_line_error("deform_to_target", "select the source too")
 
 
-def test_transfer_pose_with_landmarks_from_vertex_groups(tmp_path):
+@pytest.mark.parametrize("landmarks", ["groups", "files"])
+def test_transfer_pose_with_landmarks_from_vertex_groups_or_files(tmp_path, landmarks):
     from builders import small_humanoid_data
 
+    from apps import deformation_transfer as dt
     from cagekit.landmarks import load_landmarks
 
     small_humanoid_data(tmp_path)
+    files = [tmp_path / "template_landmarks.json",
+             tmp_path / "characters" / "stocky_landmarks.json"]
     template = _object("template", *io.load_mesh(tmp_path / "template.obj"))
     _object("template_cage", *io.load_mesh(tmp_path / "template_cage.obj"))
     character = _object("stocky", *io.load_mesh(tmp_path / "characters" / "stocky.obj"))
@@ -281,16 +285,16 @@ def test_transfer_pose_with_landmarks_from_vertex_groups(tmp_path):
     pose_files = sorted((tmp_path / "poses").glob("pose_???.obj"))
     for path in pose_files:
         meshes.new_object(path.stem, *io.load_mesh(path), poses)
-    marks = {}
-    for obj, path in ((template, tmp_path / "template_landmarks.json"),
-                      (character, tmp_path / "characters" / "stocky_landmarks.json")):
-        marks[obj.name] = load_landmarks(path)
-        V = meshes.world_vertices(obj)
-        for label, point in marks[obj.name].items():  # the nearest vertex of each landmark
-            group = obj.vertex_groups.new(name=label)
-            group.add([int(np.argmin(np.linalg.norm(V - point, axis=1)))], 1.0, "REPLACE")
+    if landmarks == "groups":
+        for obj, path in zip((template, character), files):
+            V = meshes.world_vertices(obj)
+            for label, point in load_landmarks(path).items():  # each landmark's nearest vertex
+                group = obj.vertex_groups.new(name=label)
+                group.add([int(np.argmin(np.linalg.norm(V - point, axis=1)))], 1.0, "REPLACE")
     assert _run("transfer_pose", template="template", template_cage="template_cage",
-                poses="poses", character="stocky") == {"FINISHED"}
+                poses="poses", character="stocky", landmarks=landmarks,
+                template_landmarks=str(files[0]), character_landmarks=str(files[1])) \
+        == {"FINISHED"}
     out = bpy.data.collections["stocky_poses"]
     assert {o.name for o in out.objects} == {"stocky_cage"} | {f"stocky_{p.stem}"
                                                                for p in pose_files}
@@ -300,6 +304,15 @@ def test_transfer_pose_with_landmarks_from_vertex_groups(tmp_path):
         got = meshes.world_vertices(bpy.data.objects[f"stocky_{path.stem}"])
         rest = np.linalg.norm(Vc - truth, axis=1).mean()
         assert np.linalg.norm(got - truth, axis=1).mean() < rest / 3, path.stem
+    if landmarks == "files":  # the library's own result, to float32
+        template_mesh = io.load_mesh(tmp_path / "template.obj")
+        cage = io.load_mesh(tmp_path / "template_cage.obj")
+        char = dt.fit_character(template_mesh[0], *cage, load_landmarks(files[0]), Vc, Fc,
+                                load_landmarks(files[1]))
+        pose = io.load_mesh(pose_files[0])
+        expected = dt.transfer(char, dt.template_cage_classical(template_mesh, cage, pose))
+        got = meshes.world_vertices(bpy.data.objects[f"stocky_{pose_files[0].stem}"])
+        np.testing.assert_allclose(got, np.float32(expected), atol=1e-5)
 
 
 def test_transfer_names_a_missing_object():
