@@ -113,74 +113,79 @@ def _edge_log(rp, rq, dot, cross2, length):
                      2.0 * (rr + dot if acute else cross2))
 
 
-_LANES = 8
+_LANES = 16
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath={"contract"})
 def _green_lanes(P, cage_v, faces, edges, face_edges, face_signs, normals, face_off, edge_m,
-                 edge_off, grads, inv_twice, edge_len, inv_len2, D, R, N, I, lam, psi, acc,
-                 near):
-    """Raw Green coordinates of ``_LANES`` points at once: ``psi`` (m, L), ``acc`` (k, L)
-    (phi), and each point's squared distance to the cage into ``near`` (L).
+                 edge_off, grads, inv_twice, edge_len, inv_len2, V, E, F, acc, near):
+    """Raw Green coordinates of ``_LANES`` points at once: ``F[3]`` (m, L) psi, ``acc``
+    (k, L) phi, and each point's squared distance to the cage into ``near`` (L).
 
-    The loops run over lanes (points) innermost, with no branches, so that LLVM vectorises
-    them. Per vertex: ``d = v - x`` and its length; per undirected edge: the normal of the
-    plane through ``x`` and the edge (``d_p x d_q``, unnormalised: the face across sees it
-    negated bit for bit) and ``I_e``; per face: the solid angle by the spherical excess of
-    those normals, the foot's barycentrics and the two potentials. A point too close for
-    the integrals gets a non-finite value somewhere. ``P`` (3, L) holds the points,
-    ``D`` (3, k, L), ``R`` (k, L), ``N`` (3, e, L), ``I`` (e, L), ``lam`` (3, m, L) are
-    scratch.
+    The loops run over lanes (points) innermost, with no branches and one array written
+    each (LLVM checks at run time that arrays do not overlap, and gives up past a few), so
+    that LLVM vectorises them. Per vertex, into ``V`` (4, k, L): ``d = v - x`` and its
+    length; per undirected edge, into ``E`` (5, e, L): the normal of the plane through
+    ``x`` and the edge (``d_p x d_q``, unnormalised: the face across sees it negated bit for
+    bit), ``I_e`` and the squared distance to the edge where the foot falls on it; per
+    face, into ``F`` (5, m, L): the three vertices' terms (the solid angle by the spherical
+    excess of those normals, the foot's barycentrics), psi, and the squared distance to
+    the face where the foot falls in it. A point too close for the integrals gets a
+    non-finite value somewhere. ``P`` (3, L) holds the points.
     """
     k = cage_v.shape[0]
-    for lane in range(_LANES):
-        near[lane] = np.inf
+    ne = edges.shape[0]
+    m = faces.shape[0]
     for v in range(k):
         for lane in range(_LANES):
             dx = cage_v[v, 0] - P[0, lane]
             dy = cage_v[v, 1] - P[1, lane]
             dz = cage_v[v, 2] - P[2, lane]
-            D[0, v, lane] = dx
-            D[1, v, lane] = dy
-            D[2, v, lane] = dz
-            r2 = dx * dx + dy * dy + dz * dz
-            R[v, lane] = np.sqrt(r2)
-            near[lane] = min(near[lane], r2)
-    for e in range(edges.shape[0]):
+            V[0, v, lane] = dx
+            V[1, v, lane] = dy
+            V[2, v, lane] = dz
+            V[3, v, lane] = np.sqrt(dx * dx + dy * dy + dz * dz)
+    for e in range(ne):
         p = edges[e, 0]
         q = edges[e, 1]
         length = edge_len[e]
         inv_l2 = inv_len2[e]
         for lane in range(_LANES):
-            px, py, pz = D[0, p, lane], D[1, p, lane], D[2, p, lane]
-            qx, qy, qz = D[0, q, lane], D[1, q, lane], D[2, q, lane]
+            px, py, pz, rp = V[0, p, lane], V[1, p, lane], V[2, p, lane], V[3, p, lane]
+            qx, qy, qz, rq = V[0, q, lane], V[1, q, lane], V[2, q, lane], V[3, q, lane]
             cx = py * qz - pz * qy
             cy = pz * qx - px * qz
             cz = px * qy - py * qx
-            N[0, e, lane] = cx
-            N[1, e, lane] = cy
-            N[2, e, lane] = cz
             cross2 = cx * cx + cy * cy + cz * cz
             dot = px * qx + py * qy + pz * qz
-            rp = R[p, lane]
-            rq = R[q, lane]
-            # squared distance to the edge where the foot falls on it: |d_p x d_q|^2 / L^2
+            E[0, e, lane] = cx
+            E[1, e, lane] = cy
+            E[2, e, lane] = cz
+            E[3, e, lane] = _edge_log(rp, rq, dot, cross2, length)
+            # |d_p x d_q|^2 / L^2 where the foot falls on the edge
             on = (rp * rp - dot >= 0.0) & (rq * rq - dot >= 0.0)
-            near[lane] = min(near[lane], cross2 * inv_l2 if on else np.inf)
-            I[e, lane] = _edge_log(rp, rq, dot, cross2, length)
-    for j in range(faces.shape[0]):
+            E[4, e, lane] = cross2 * inv_l2 if on else np.inf
+    for j in range(m):
         nx, ny, nz = normals[j, 0], normals[j, 1], normals[j, 2]
         off = face_off[j]
         inv2a = inv_twice[j]
         e0, e1, e2 = face_edges[j, 0], face_edges[j, 1], face_edges[j, 2]
         s0, s1, s2 = face_signs[j, 0], face_signs[j, 1], face_signs[j, 2]
+        # the edges' outward in-plane normals and offsets, the hat functions' gradients
+        m0x, m0y, m0z = edge_m[j, 0, 0], edge_m[j, 0, 1], edge_m[j, 0, 2]
+        m1x, m1y, m1z = edge_m[j, 1, 0], edge_m[j, 1, 1], edge_m[j, 1, 2]
+        m2x, m2y, m2z = edge_m[j, 2, 0], edge_m[j, 2, 1], edge_m[j, 2, 2]
+        o0, o1, o2 = edge_off[j, 0], edge_off[j, 1], edge_off[j, 2]
+        g0x, g0y, g0z = grads[j, 0, 0], grads[j, 0, 1], grads[j, 0, 2]
+        g1x, g1y, g1z = grads[j, 1, 0], grads[j, 1, 1], grads[j, 1, 2]
+        g2x, g2y, g2z = grads[j, 2, 0], grads[j, 2, 1], grads[j, 2, 2]
         for lane in range(_LANES):
             x0, x1, x2 = P[0, lane], P[1, lane], P[2, lane]
             h = off - (x0 * nx + x1 * ny + x2 * nz)
             # the planes' normals as this face orients them
-            ax, ay, az = s0 * N[0, e0, lane], s0 * N[1, e0, lane], s0 * N[2, e0, lane]
-            bx, by, bz = s1 * N[0, e1, lane], s1 * N[1, e1, lane], s1 * N[2, e1, lane]
-            cx, cy, cz = s2 * N[0, e2, lane], s2 * N[1, e2, lane], s2 * N[2, e2, lane]
+            ax, ay, az = s0 * E[0, e0, lane], s0 * E[1, e0, lane], s0 * E[2, e0, lane]
+            bx, by, bz = s1 * E[0, e1, lane], s1 * E[1, e1, lane], s1 * E[2, e1, lane]
+            cx, cy, cz = s2 * E[0, e2, lane], s2 * E[1, e2, lane], s2 * E[2, e2, lane]
             # the spherical triangle's angles, between the planes of consecutive edges
             c0, sn0 = _corner(cx, cy, cz, ax, ay, az)
             c1, sn1 = _corner(ax, ay, az, bx, by, bz)
@@ -191,33 +196,38 @@ def _green_lanes(P, cage_v, faces, edges, face_edges, face_signs, normals, face_
             gam0 = (bx * nx + by * ny + bz * nz) * inv2a
             gam1 = (cx * nx + cy * ny + cz * nz) * inv2a
             gam2 = (ax * nx + ay * ny + az * nz) * inv2a
+            i0, i1, i2 = E[3, e0, lane], E[3, e1, lane], E[3, e2, lane]
+            vx = m0x * i0 + m1x * i1 + m2x * i2
+            vy = m0y * i0 + m1y * i1 + m2y * i2
+            vz = m0z * i0 + m1z * i1 + m2z * i2
+            single = ((o0 - (x0 * m0x + x1 * m0y + x2 * m0z)) * i0
+                      + (o1 - (x0 * m1x + x1 * m1y + x2 * m1z)) * i1
+                      + (o2 - (x0 * m2x + x1 * m2y + x2 * m2z)) * i2)
+            F[0, j, lane] = (gam0 * omega - h * (g0x * vx + g0y * vy + g0z * vz)) * _INV_FOUR_PI
+            F[1, j, lane] = (gam1 * omega - h * (g1x * vx + g1y * vy + g1z * vz)) * _INV_FOUR_PI
+            F[2, j, lane] = (gam2 * omega - h * (g2x * vx + g2y * vy + g2z * vz)) * _INV_FOUR_PI
+            F[3, j, lane] = (single - h * omega) * _INV_FOUR_PI
             foot_in = (gam0 >= 0.0) & (gam1 >= 0.0) & (gam2 >= 0.0)
-            near[lane] = min(near[lane], h * h if foot_in else np.inf)
-            i0, i1, i2 = I[e0, lane], I[e1, lane], I[e2, lane]
-            vx = edge_m[j, 0, 0] * i0 + edge_m[j, 1, 0] * i1 + edge_m[j, 2, 0] * i2
-            vy = edge_m[j, 0, 1] * i0 + edge_m[j, 1, 1] * i1 + edge_m[j, 2, 1] * i2
-            vz = edge_m[j, 0, 2] * i0 + edge_m[j, 1, 2] * i1 + edge_m[j, 2, 2] * i2
-            single = ((edge_off[j, 0] - (x0 * edge_m[j, 0, 0] + x1 * edge_m[j, 0, 1]
-                                         + x2 * edge_m[j, 0, 2])) * i0
-                      + (edge_off[j, 1] - (x0 * edge_m[j, 1, 0] + x1 * edge_m[j, 1, 1]
-                                           + x2 * edge_m[j, 1, 2])) * i1
-                      + (edge_off[j, 2] - (x0 * edge_m[j, 2, 0] + x1 * edge_m[j, 2, 1]
-                                           + x2 * edge_m[j, 2, 2])) * i2)
-            psi[j, lane] = (single - h * omega) * _INV_FOUR_PI
-            lam[0, j, lane] = (gam0 * omega - h * (grads[j, 0, 0] * vx + grads[j, 0, 1] * vy
-                                                   + grads[j, 0, 2] * vz)) * _INV_FOUR_PI
-            lam[1, j, lane] = (gam1 * omega - h * (grads[j, 1, 0] * vx + grads[j, 1, 1] * vy
-                                                   + grads[j, 1, 2] * vz)) * _INV_FOUR_PI
-            lam[2, j, lane] = (gam2 * omega - h * (grads[j, 2, 0] * vx + grads[j, 2, 1] * vy
-                                                   + grads[j, 2, 2] * vz)) * _INV_FOUR_PI
+            F[4, j, lane] = h * h if foot_in else np.inf
+    for lane in range(_LANES):
+        near[lane] = np.inf
+    for v in range(k):
+        for lane in range(_LANES):
+            near[lane] = min(near[lane], V[3, v, lane] * V[3, v, lane])
+    for e in range(ne):
+        for lane in range(_LANES):
+            near[lane] = min(near[lane], E[4, e, lane])
+    for j in range(m):
+        for lane in range(_LANES):
+            near[lane] = min(near[lane], F[4, j, lane])
     for v in range(k):
         for lane in range(_LANES):
             acc[v, lane] = 0.0
-    for j in range(faces.shape[0]):
+    for j in range(m):
         for a in range(3):
             v = faces[j, a]
             for lane in range(_LANES):
-                acc[v, lane] += lam[a, j, lane]
+                acc[v, lane] += F[a, j, lane]
 
 
 @numba.njit(parallel=True, cache=True, error_model="numpy")
@@ -236,12 +246,9 @@ def _green_kernel(points, cage_v, faces, edges, face_edges, face_signs, normals,
     n_chunks = max(1, min(n_blocks, n_chunks))
     for chunk in numba.prange(n_chunks):
         P = np.empty((3, L))
-        D = np.empty((3, k, L))
-        R = np.empty((k, L))
-        N = np.empty((3, ne, L))
-        I = np.empty((ne, L))
-        lam = np.empty((3, m, L))
-        psi_l = np.empty((m, L))
+        V = np.empty((4, k, L))
+        E = np.empty((5, ne, L))
+        F = np.empty((5, m, L))
         acc = np.empty((k, L))
         near = np.empty(L)
         for blk in range(chunk * n_blocks // n_chunks, (chunk + 1) * n_blocks // n_chunks):
@@ -253,8 +260,8 @@ def _green_kernel(points, cage_v, faces, edges, face_edges, face_signs, normals,
                 P[1, lane] = points[src, 1]
                 P[2, lane] = points[src, 2]
             _green_lanes(P, cage_v, faces, edges, face_edges, face_signs, normals, face_off,
-                         edge_m, edge_off, grads, inv_twice, edge_len, inv_len2, D, R, N, I,
-                         lam, psi_l, acc, near)
+                         edge_m, edge_off, grads, inv_twice, edge_len, inv_len2, V, E, F,
+                         acc, near)
             for i in range(start, stop):
                 lane = i - start
                 # one check: a non-finite term anywhere reaches these sums
@@ -263,8 +270,8 @@ def _green_kernel(points, cage_v, faces, edges, face_edges, face_signs, normals,
                     phi[i, v] = acc[v, lane]
                     total += acc[v, lane]
                 for j in range(m):
-                    psi[i, j] = psi_l[j, lane]
-                    total += psi_l[j, lane]
+                    psi[i, j] = F[3, j, lane]
+                    total += F[3, j, lane]
                 dist[i] = np.sqrt(near[lane]) if np.isfinite(total) else -1.0
 
 
