@@ -113,6 +113,8 @@ def _edge_log(rp, rq, dot, cross2, length):
                      2.0 * (rr + dot if acute else cross2))
 
 
+#: points evaluated together: with 16, LLVM vectorises every lane loop (with 8 it leaves
+#: them scalar, at half the speed; 32 is about 5% faster again, for twice the scratch)
 _LANES = 16
 
 
