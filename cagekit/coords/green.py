@@ -24,7 +24,12 @@ of the angles between the planes through the point and each edge (normals ``d_p 
 d_q``): the face across an edge sees the same normal negated bit for bit, so the part
 that is ill-conditioned near the edge cancels between the two faces (Van Oosterom and
 Strackee's one-``atan2`` formula loses ``eps / distance`` there); the three angles take
-one ``atan2`` as the argument of a product (:func:`_excess`). Reproduction holds to
+one ``atan2`` as the argument of a product (:func:`_excess`). The kernel runs
+:data:`_LANES` points at a time, branch-free so that LLVM vectorises it (as mean value
+coordinates' does): the logarithms by :func:`cagekit.coords.fastlog.log_ratio` and the
+``atan2`` by :func:`cagekit.coords.fastangle.angle_from_sin_cos`, polynomials within a
+few units in the last place of libm's (numba has no vector ``log`` or ``atan2`` without
+SVML). Reproduction holds to
 about ``1e-14 D`` (``D`` the cage's bounding-box diagonal) down to ``1e-11 D`` from the
 cage (docs/benchmarks.md, "Green coordinates").
 
@@ -49,6 +54,8 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from cagekit.coords.fastangle import angle_from_sin_cos
+from cagekit.coords.fastlog import log_ratio
 from cagekit.frame import bounding_box_diagonal
 
 __all__ = ["green_coordinates", "evaluation_plan", "EvaluationPlan", "FaceTerms", "stretch_factors",
@@ -64,8 +71,8 @@ _INV_FOUR_PI = 1.0 / (4.0 * np.pi)
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
 def _corner(ax, ay, az, bx, by, bz):
-    """Cosine and sine of the angle between two unit vectors (the sine from the cross
-    product's length: accurate at every angle)."""
+    """Cosine and sine of the angle between two vectors, both times their lengths' product
+    (the sine from the cross product's length: accurate at every angle)."""
     cx = ay * bz - az * by
     cy = az * bx - ax * bz
     cz = ax * by - ay * bx
@@ -73,141 +80,201 @@ def _corner(ax, ay, az, bx, by, bz):
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _excess(c0, s0, c1, s1, c2, s2, foot_inside):
-    """``|Omega| = 2 pi - (a_0 + a_1 + a_2)`` from the corners' cosines and sines.
+def _excess(c0, s0, c1, s1, c2, s2):
+    """``|Omega| = 2 pi - (a_0 + a_1 + a_2)`` from the corners' cosines and sines (each
+    pair may be scaled by its own positive factor).
 
-    One ``atan2``: the argument of the product of the ``cos a + i sin a`` is the angle sum
-    (in [0, 2 pi]) modulo 2 pi, ambiguous only near 0, between ``|Omega|`` near 0 and
-    near 2 pi. Near 2 pi needs the point's foot inside the face (from outside it the face
-    fills less than a hemisphere); only then are the three angles summed one by one.
+    One ``atan2`` (:func:`~cagekit.coords.fastangle.angle_from_sin_cos`): the argument of
+    the product of the ``cos a + i sin a`` is the angle sum (in [0, 2 pi]) modulo 2 pi,
+    ambiguous only near 0, between ``|Omega|`` near 0 and near 2 pi. There the signs of
+    the cosines decide: a sum under pi/4 has all three angles under pi/4 (cosines over
+    0.7), one over 7 pi/4 has an angle over 7 pi/12 (cosine under -0.25). Selects only,
+    so that the loop calling it vectorises.
     """
     re = c0 * c1 - s0 * s1
     im = c0 * s1 + s0 * c1
     re, im = re * c2 - im * s2, re * s2 + im * c2
-    arg = np.arctan2(im, re)
-    if abs(arg) >= 0.5 * np.pi:
-        return 2.0 * np.pi - arg if arg > 0.0 else -arg
-    if not foot_inside:
-        return abs(arg)
-    return 2.0 * np.pi - np.arctan2(s0, c0) - np.arctan2(s1, c1) - np.arctan2(s2, c2)
+    a = angle_from_sin_cos(abs(im), re)  # |arg|
+    near_zero = (c0 > 0.0) & (c1 > 0.0) & (c2 > 0.0)
+    wrapped = near_zero if a < 0.25 * np.pi else im > 0.0  # the sum is arg, not 2 pi + arg
+    arg = a if im >= 0.0 else -a
+    return 2.0 * np.pi - arg if wrapped else a
 
 
-@numba.njit(cache=True, error_model="numpy")
-def _green_row(x, cage_v, faces, edges, face_edges, face_signs, normals, face_off, edge_m,
-               edge_off, grads, inv_twice, edge_len, D, R, N, I, phi, psi):
-    """Raw Green coordinates of one point into ``phi`` (k,) and ``psi`` (m,); returns the
-    point's distance to the cage, or -1 when it is too close for the integrals (a
-    non-finite value).
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _edge_log(rp, rq, dot, cross2, length):
+    """``I_e = log((R_p + R_q + L) / (R_p + R_q - L))`` with the denominator as ``2 (R_p R_q
+    + d_p . d_q) / (R_p + R_q + L)``, and that as ``|d_p x d_q|^2 / (R_p R_q - d_p . d_q)``
+    where the two vectors point apart (:func:`~cagekit.coords.fastlog.log_ratio`)."""
+    rr = rp * rq
+    total = rp + rq + length
+    acute = dot >= 0.0
+    return log_ratio(total * total * (1.0 if acute else rr - dot),
+                     2.0 * (rr + dot if acute else cross2))
 
-    Per vertex: ``d = v - x`` and its length; per undirected edge: the unit normal of
-    the plane through ``x`` and the edge (``d_p x d_q``, negated bit for bit in the face
-    across) and ``I_e``; per face: the solid angle by the spherical excess of those
-    normals, the foot's barycentrics and the two potentials. ``D, R, N, I`` are scratch.
+
+#: points evaluated together: with 16, LLVM vectorises every lane loop (with 8 it leaves
+#: them scalar, at half the speed; 32 is about 5% faster again, for twice the scratch)
+_LANES = 16
+
+
+@numba.njit(cache=True, error_model="numpy", fastmath={"contract"})
+def _green_lanes(P, cage_v, faces, edges, face_edges, face_signs, normals, face_off, edge_m,
+                 edge_off, grads, inv_twice, edge_len, inv_len2, V, E, F, acc, near):
+    """Raw Green coordinates of ``_LANES`` points at once: ``F[3]`` (m, L) psi, ``acc``
+    (k, L) phi, and each point's squared distance to the cage into ``near`` (L).
+
+    The loops run over lanes (points) innermost, with no branches and one array written
+    each (LLVM checks at run time that arrays do not overlap, and gives up past a few), so
+    that LLVM vectorises them. Per vertex, into ``V`` (4, k, L): ``d = v - x`` and its
+    length; per undirected edge, into ``E`` (5, e, L): the normal of the plane through
+    ``x`` and the edge (``d_p x d_q``, unnormalised: the face across sees it negated bit for
+    bit), ``I_e`` and the squared distance to the edge where the foot falls on it; per
+    face, into ``F`` (5, m, L): the three vertices' terms (the solid angle by the spherical
+    excess of those normals, the foot's barycentrics), psi, and the squared distance to
+    the face where the foot falls in it. A point too close for the integrals gets a
+    non-finite value somewhere. ``P`` (3, L) holds the points.
     """
     k = cage_v.shape[0]
-    nearest = np.inf
+    ne = edges.shape[0]
+    m = faces.shape[0]
     for v in range(k):
-        D[v, 0] = cage_v[v, 0] - x[0]
-        D[v, 1] = cage_v[v, 1] - x[1]
-        D[v, 2] = cage_v[v, 2] - x[2]
-        R[v] = np.sqrt(D[v, 0] ** 2 + D[v, 1] ** 2 + D[v, 2] ** 2)
-        nearest = min(nearest, R[v])
-    for e in range(edges.shape[0]):
+        for lane in range(_LANES):
+            dx = cage_v[v, 0] - P[0, lane]
+            dy = cage_v[v, 1] - P[1, lane]
+            dz = cage_v[v, 2] - P[2, lane]
+            V[0, v, lane] = dx
+            V[1, v, lane] = dy
+            V[2, v, lane] = dz
+            V[3, v, lane] = np.sqrt(dx * dx + dy * dy + dz * dz)
+    for e in range(ne):
         p = edges[e, 0]
         q = edges[e, 1]
-        cx = D[p, 1] * D[q, 2] - D[p, 2] * D[q, 1]
-        cy = D[p, 2] * D[q, 0] - D[p, 0] * D[q, 2]
-        cz = D[p, 0] * D[q, 1] - D[p, 1] * D[q, 0]
-        cross2 = cx * cx + cy * cy + cz * cz
-        norm = np.sqrt(cross2)
-        # N holds the unnormalised cross product (barycentrics) and its unit version
-        N[e, 0] = cx
-        N[e, 1] = cy
-        N[e, 2] = cz
-        inv = 1.0 / norm
-        N[e, 3] = cx * inv
-        N[e, 4] = cy * inv
-        N[e, 5] = cz * inv
-        # integral of 1/r along the edge: log((R_p + R_q + L)^2 / (2 (R_p R_q + d_p.d_q)))
-        dot = D[p, 0] * D[q, 0] + D[p, 1] * D[q, 1] + D[p, 2] * D[q, 2]
-        # distance to the edge where the foot falls on it: |d_p x d_q| / L
-        if R[p] * R[p] - dot >= 0.0 and R[q] * R[q] - dot >= 0.0:
-            nearest = min(nearest, norm / edge_len[e])
-        rr = R[p] * R[q]
-        half = rr + dot if dot >= 0.0 else cross2 / (rr - dot)
-        total = R[p] + R[q] + edge_len[e]
-        I[e] = np.log(total * total / (2.0 * half))
-    m = faces.shape[0]
+        length = edge_len[e]
+        inv_l2 = inv_len2[e]
+        for lane in range(_LANES):
+            px, py, pz, rp = V[0, p, lane], V[1, p, lane], V[2, p, lane], V[3, p, lane]
+            qx, qy, qz, rq = V[0, q, lane], V[1, q, lane], V[2, q, lane], V[3, q, lane]
+            cx = py * qz - pz * qy
+            cy = pz * qx - px * qz
+            cz = px * qy - py * qx
+            cross2 = cx * cx + cy * cy + cz * cz
+            dot = px * qx + py * qy + pz * qz
+            E[0, e, lane] = cx
+            E[1, e, lane] = cy
+            E[2, e, lane] = cz
+            E[3, e, lane] = _edge_log(rp, rq, dot, cross2, length)
+            # |d_p x d_q|^2 / L^2 where the foot falls on the edge
+            on = (rp * rp - dot >= 0.0) & (rq * rq - dot >= 0.0)
+            E[4, e, lane] = cross2 * inv_l2 if on else np.inf
     for j in range(m):
         nx, ny, nz = normals[j, 0], normals[j, 1], normals[j, 2]
-        h = face_off[j] - (x[0] * nx + x[1] * ny + x[2] * nz)
+        off = face_off[j]
+        inv2a = inv_twice[j]
         e0, e1, e2 = face_edges[j, 0], face_edges[j, 1], face_edges[j, 2]
         s0, s1, s2 = face_signs[j, 0], face_signs[j, 1], face_signs[j, 2]
-        # the spherical triangle's angles, between the planes of consecutive edges
-        # (flipping either normal flips the cosine and leaves the sine)
-        c0, sn0 = _corner(N[e2, 3], N[e2, 4], N[e2, 5], N[e0, 3], N[e0, 4], N[e0, 5])
-        c1, sn1 = _corner(N[e0, 3], N[e0, 4], N[e0, 5], N[e1, 3], N[e1, 4], N[e1, 5])
-        c2, sn2 = _corner(N[e1, 3], N[e1, 4], N[e1, 5], N[e2, 3], N[e2, 4], N[e2, 5])
-        c0 *= s2 * s0
-        c1 *= s0 * s1
-        c2 *= s1 * s2
-        # the foot's barycentrics: (d1 x d2) . n, (d2 x d0) . n, (d0 x d1) . n over 2A
-        gam0 = s1 * (N[e1, 0] * nx + N[e1, 1] * ny + N[e1, 2] * nz) * inv_twice[j]
-        gam1 = s2 * (N[e2, 0] * nx + N[e2, 1] * ny + N[e2, 2] * nz) * inv_twice[j]
-        gam2 = s0 * (N[e0, 0] * nx + N[e0, 1] * ny + N[e0, 2] * nz) * inv_twice[j]
-        # generous (a sliver's barycentrics are rounded at ~eps / its area): a false
-        # "inside" only costs the three-atan2 sum
-        slack = -1e-3 - 1e-14 * inv_twice[j]
-        foot_inside = gam0 >= slack and gam1 >= slack and gam2 >= slack
-        if gam0 >= 0.0 and gam1 >= 0.0 and gam2 >= 0.0:
-            nearest = min(nearest, abs(h))
-        omega = _excess(c0, sn0, c1, sn1, c2, sn2, foot_inside)
-        if h < 0.0:
-            omega = -omega
-        vx = 0.0
-        vy = 0.0
-        vz = 0.0
-        single = 0.0
-        for c in range(3):
-            ie = I[face_edges[j, c]]
-            mx, my, mz = edge_m[j, c, 0], edge_m[j, c, 1], edge_m[j, c, 2]
-            vx += mx * ie
-            vy += my * ie
-            vz += mz * ie
-            single += (edge_off[j, c] - (x[0] * mx + x[1] * my + x[2] * mz)) * ie
-        psi[j] = (single - h * omega) * _INV_FOUR_PI
-        for a in range(3):
-            gam = gam0 if a == 0 else (gam1 if a == 1 else gam2)
-            phi[faces[j, a]] += (gam * omega - h * (grads[j, a, 0] * vx + grads[j, a, 1] * vy
-                                                    + grads[j, a, 2] * vz)) * _INV_FOUR_PI
-    # one check at the end: a non-finite term anywhere reaches these sums
-    total = 0.0
+        # the edges' outward in-plane normals and offsets, the hat functions' gradients
+        m0x, m0y, m0z = edge_m[j, 0, 0], edge_m[j, 0, 1], edge_m[j, 0, 2]
+        m1x, m1y, m1z = edge_m[j, 1, 0], edge_m[j, 1, 1], edge_m[j, 1, 2]
+        m2x, m2y, m2z = edge_m[j, 2, 0], edge_m[j, 2, 1], edge_m[j, 2, 2]
+        o0, o1, o2 = edge_off[j, 0], edge_off[j, 1], edge_off[j, 2]
+        g0x, g0y, g0z = grads[j, 0, 0], grads[j, 0, 1], grads[j, 0, 2]
+        g1x, g1y, g1z = grads[j, 1, 0], grads[j, 1, 1], grads[j, 1, 2]
+        g2x, g2y, g2z = grads[j, 2, 0], grads[j, 2, 1], grads[j, 2, 2]
+        for lane in range(_LANES):
+            x0, x1, x2 = P[0, lane], P[1, lane], P[2, lane]
+            h = off - (x0 * nx + x1 * ny + x2 * nz)
+            # the planes' normals as this face orients them
+            ax, ay, az = s0 * E[0, e0, lane], s0 * E[1, e0, lane], s0 * E[2, e0, lane]
+            bx, by, bz = s1 * E[0, e1, lane], s1 * E[1, e1, lane], s1 * E[2, e1, lane]
+            cx, cy, cz = s2 * E[0, e2, lane], s2 * E[1, e2, lane], s2 * E[2, e2, lane]
+            # the spherical triangle's angles, between the planes of consecutive edges
+            c0, sn0 = _corner(cx, cy, cz, ax, ay, az)
+            c1, sn1 = _corner(ax, ay, az, bx, by, bz)
+            c2, sn2 = _corner(bx, by, bz, cx, cy, cz)
+            omega = _excess(c0, sn0, c1, sn1, c2, sn2)
+            omega = -omega if h < 0.0 else omega
+            # the foot's barycentrics: (d1 x d2) . n, (d2 x d0) . n, (d0 x d1) . n over 2A
+            gam0 = (bx * nx + by * ny + bz * nz) * inv2a
+            gam1 = (cx * nx + cy * ny + cz * nz) * inv2a
+            gam2 = (ax * nx + ay * ny + az * nz) * inv2a
+            i0, i1, i2 = E[3, e0, lane], E[3, e1, lane], E[3, e2, lane]
+            vx = m0x * i0 + m1x * i1 + m2x * i2
+            vy = m0y * i0 + m1y * i1 + m2y * i2
+            vz = m0z * i0 + m1z * i1 + m2z * i2
+            single = ((o0 - (x0 * m0x + x1 * m0y + x2 * m0z)) * i0
+                      + (o1 - (x0 * m1x + x1 * m1y + x2 * m1z)) * i1
+                      + (o2 - (x0 * m2x + x1 * m2y + x2 * m2z)) * i2)
+            F[0, j, lane] = (gam0 * omega - h * (g0x * vx + g0y * vy + g0z * vz)) * _INV_FOUR_PI
+            F[1, j, lane] = (gam1 * omega - h * (g1x * vx + g1y * vy + g1z * vz)) * _INV_FOUR_PI
+            F[2, j, lane] = (gam2 * omega - h * (g2x * vx + g2y * vy + g2z * vz)) * _INV_FOUR_PI
+            F[3, j, lane] = (single - h * omega) * _INV_FOUR_PI
+            foot_in = (gam0 >= 0.0) & (gam1 >= 0.0) & (gam2 >= 0.0)
+            F[4, j, lane] = h * h if foot_in else np.inf
+    for lane in range(_LANES):
+        near[lane] = np.inf
     for v in range(k):
-        total += phi[v]
+        for lane in range(_LANES):
+            near[lane] = min(near[lane], V[3, v, lane] * V[3, v, lane])
+    for e in range(ne):
+        for lane in range(_LANES):
+            near[lane] = min(near[lane], E[4, e, lane])
     for j in range(m):
-        total += psi[j]
-    return nearest if np.isfinite(total) else -1.0
+        for lane in range(_LANES):
+            near[lane] = min(near[lane], F[4, j, lane])
+    for v in range(k):
+        for lane in range(_LANES):
+            acc[v, lane] = 0.0
+    for j in range(m):
+        for a in range(3):
+            v = faces[j, a]
+            for lane in range(_LANES):
+                acc[v, lane] += F[a, j, lane]
 
 
 @numba.njit(parallel=True, cache=True, error_model="numpy")
 def _green_kernel(points, cage_v, faces, edges, face_edges, face_signs, normals, face_off,
                   edge_m, edge_off, grads, inv_twice, edge_len, n_chunks, phi, psi, dist):
-    """:func:`_green_row` for every point, chunks of points in parallel (scratch once per
-    chunk: O(k + e) memory); each point's distance to the cage into ``dist``."""
+    """:func:`_green_lanes` for every point, ``_LANES`` at a time, chunks of them in
+    parallel (scratch once per chunk: O(k + e + m) memory); each point's distance to the
+    cage into ``dist``, or -1 where a coordinate is not finite (too close to the cage)."""
     n = points.shape[0]
     k = cage_v.shape[0]
     ne = edges.shape[0]
-    n_chunks = max(1, min(n, n_chunks))
+    m = faces.shape[0]
+    L = _LANES
+    inv_len2 = 1.0 / (edge_len * edge_len)
+    n_blocks = (n + L - 1) // L
+    n_chunks = max(1, min(n_blocks, n_chunks))
     for chunk in numba.prange(n_chunks):
-        D = np.empty((k, 3))
-        R = np.empty(k)
-        N = np.empty((ne, 6))
-        I = np.empty(ne)
-        for i in range(chunk * n // n_chunks, (chunk + 1) * n // n_chunks):
-            phi[i, :] = 0.0
-            dist[i] = _green_row(points[i], cage_v, faces, edges, face_edges, face_signs,
-                               normals, face_off, edge_m, edge_off, grads, inv_twice,
-                               edge_len, D, R, N, I, phi[i], psi[i])
+        P = np.empty((3, L))
+        V = np.empty((4, k, L))
+        E = np.empty((5, ne, L))
+        F = np.empty((5, m, L))
+        acc = np.empty((k, L))
+        near = np.empty(L)
+        for blk in range(chunk * n_blocks // n_chunks, (chunk + 1) * n_blocks // n_chunks):
+            start = blk * L
+            stop = min(start + L, n)
+            for lane in range(L):
+                src = min(start + lane, n - 1)
+                P[0, lane] = points[src, 0]
+                P[1, lane] = points[src, 1]
+                P[2, lane] = points[src, 2]
+            _green_lanes(P, cage_v, faces, edges, face_edges, face_signs, normals, face_off,
+                         edge_m, edge_off, grads, inv_twice, edge_len, inv_len2, V, E, F,
+                         acc, near)
+            for i in range(start, stop):
+                lane = i - start
+                # one check: a non-finite term anywhere reaches these sums
+                total = 0.0
+                for v in range(k):
+                    phi[i, v] = acc[v, lane]
+                    total += acc[v, lane]
+                for j in range(m):
+                    psi[i, j] = F[3, j, lane]
+                    total += F[3, j, lane]
+                dist[i] = np.sqrt(near[lane]) if np.isfinite(total) else -1.0
 
 
 def _face_constants(cv, faces, normals, twice):
