@@ -91,7 +91,7 @@ blender-venv: $(BLENDER_STAMP)
 
 # the add-on's tests with the real bpy (marked blender; the default run skips them)
 test-blender: $(BLENDER_STAMP)
-	$(BLENDER_BIN)/python -m pytest -q -p no:cacheprovider -m blender tests
+	$(BLENDER_BIN)/python -m pytest -q -p no:cacheprovider -m blender tests/test_blender.py
 
 # the installable Blender extension (out/blender/cagekit-0.1.0-linux_x64.zip): the add-on with
 # the wheels of cagekit and its dependencies for Blender 5.0's Python (downloaded from PyPI),
