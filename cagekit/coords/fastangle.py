@@ -15,10 +15,47 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["angle_from_sin_cos", "half_angle_over_sin", "fit_atan_polynomial",
+__all__ = ["angle_from_sin_cos", "half_angle_over_sin", "fit_atan_polynomial", "chebyshev_fit",
            "ATAN_COEFFICIENTS"]
 
 _TAN_PI_8 = float(np.tan(np.pi / 8))
+
+
+def chebyshev_fit(target, top: float, degree: int, nodes: int) -> np.ndarray:
+    """Coefficients ``c_i`` with ``sum_i c_i t**i ~= target(t)`` on ``0 <= t <= top``.
+
+    Least squares on ``nodes`` Chebyshev nodes, refined four times with residuals in long
+    double (the polynomials of this module and of :mod:`cagekit.coords.fastlog`).
+
+    Parameters
+    ----------
+    target : callable
+        ``target(t)``: (nodes,) long double -> (nodes,) long double.
+    top : float
+    degree : int
+    nodes : int
+
+    Returns
+    -------
+    (degree + 1,) float64
+        Coefficients in increasing powers of ``t``.
+
+    Examples
+    --------
+    >>> chebyshev_fit(lambda t: 1 + 2 * t, 0.5, 1, 8).round(12).tolist()
+    [1.0, 2.0]
+    """
+    k = np.arange(nodes)
+    t = (np.cos((2 * k + 1) * np.pi / (2 * nodes)) + 1) / 2 * top
+    t_long = t.astype(np.longdouble)
+    values = target(t_long)
+    basis = np.vander(t / top, degree + 1, increasing=True)
+    basis_long = np.vander(t_long / np.longdouble(top), degree + 1, increasing=True)
+    coef = np.zeros(degree + 1)
+    for _ in range(4):  # iterative refinement with long double residuals
+        residual = (values - basis_long @ coef.astype(np.longdouble)).astype(np.float64)
+        coef = coef + np.linalg.lstsq(basis, residual, rcond=None)[0]
+    return coef / top ** np.arange(degree + 1)
 
 
 def fit_atan_polynomial(degree: int = 11, nodes: int = 400) -> np.ndarray:
@@ -29,27 +66,19 @@ def fit_atan_polynomial(degree: int = 11, nodes: int = 400) -> np.ndarray:
     degree : int, default 11
         Degree of the polynomial in ``y**2``.
     nodes : int, default 400
-        Chebyshev nodes of the least-squares fit.
+        Chebyshev nodes of the least-squares fit (:func:`chebyshev_fit`).
 
     Returns
     -------
     (degree + 1,) float64
         Coefficients in increasing powers of ``y**2``.
     """
-    top = _TAN_PI_8**2
-    k = np.arange(nodes)
-    t = (np.cos((2 * k + 1) * np.pi / (2 * nodes)) + 1) / 2 * top
-    t_long = t.astype(np.longdouble)
-    y = np.sqrt(t_long)
-    safe = np.where(y > 0, y, 1)
-    target = np.where(y > 0, np.arctan(safe) / safe, 1)
-    basis = np.vander(t / top, degree + 1, increasing=True)
-    basis_long = np.vander(t_long / np.longdouble(top), degree + 1, increasing=True)
-    coef = np.zeros(degree + 1)
-    for _ in range(4):  # iterative refinement with long double residuals
-        residual = (target - basis_long @ coef.astype(np.longdouble)).astype(np.float64)
-        coef = coef + np.linalg.lstsq(basis, residual, rcond=None)[0]
-    return coef / top ** np.arange(degree + 1)
+    def atan_over_y(t):
+        y = np.sqrt(t)
+        safe = np.where(y > 0, y, 1)
+        return np.where(y > 0, np.arctan(safe) / safe, 1)
+
+    return chebyshev_fit(atan_over_y, _TAN_PI_8**2, degree, nodes)
 
 
 ATAN_COEFFICIENTS = fit_atan_polynomial()

@@ -22,6 +22,8 @@ from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic
 
+from cagekit.coords.fastangle import chebyshev_fit
+
 __all__ = ["log_ratio", "fit_log_polynomial", "LOG_COEFFICIENTS"]
 
 _SQRT2 = float(np.sqrt(2.0))
@@ -45,27 +47,20 @@ def fit_log_polynomial(degree: int = 7, nodes: int = 400) -> np.ndarray:
     degree : int, default 7
         Degree of the polynomial in ``z**2``.
     nodes : int, default 400
-        Chebyshev nodes of the least-squares fit.
+        Chebyshev nodes of the least-squares fit (:func:`cagekit.coords.fastangle.chebyshev_fit`).
 
     Returns
     -------
     (degree + 1,) float64
         Coefficients in increasing powers of ``z**2``.
     """
-    k = np.arange(nodes)
-    t = (np.cos((2 * k + 1) * np.pi / (2 * nodes)) + 1) / 2 * _TOP
-    t_long = t.astype(np.longdouble)
-    z = np.sqrt(t_long)
-    safe = np.where(z > 0, z, 1)
-    target = np.where(z > 0, (np.arctanh(safe) / safe - 1) / np.where(z > 0, t_long, 1),
-                      np.longdouble(1) / 3)
-    basis = np.vander(t / _TOP, degree + 1, increasing=True)
-    basis_long = np.vander(t_long / np.longdouble(_TOP), degree + 1, increasing=True)
-    coef = np.zeros(degree + 1)
-    for _ in range(4):  # iterative refinement with long double residuals
-        residual = (target - basis_long @ coef.astype(np.longdouble)).astype(np.float64)
-        coef = coef + np.linalg.lstsq(basis, residual, rcond=None)[0]
-    return coef / _TOP ** np.arange(degree + 1)
+    def atanh_series(t):
+        z = np.sqrt(t)
+        safe = np.where(z > 0, z, 1)
+        return np.where(z > 0, (np.arctanh(safe) / safe - 1) / np.where(z > 0, t, 1),
+                        np.longdouble(1) / 3)
+
+    return chebyshev_fit(atanh_series, _TOP, degree, nodes)
 
 
 LOG_COEFFICIENTS = fit_log_polynomial()

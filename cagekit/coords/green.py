@@ -56,6 +56,7 @@ import numpy as np
 
 from cagekit.coords.fastangle import angle_from_sin_cos
 from cagekit.coords.fastlog import log_ratio
+from cagekit.coords.lanes import load_lanes
 from cagekit.frame import bounding_box_diagonal
 
 __all__ = ["green_coordinates", "evaluation_plan", "EvaluationPlan", "FaceTerms", "stretch_factors",
@@ -256,11 +257,7 @@ def _green_kernel(points, cage_v, faces, edges, face_edges, face_signs, normals,
         for blk in range(chunk * n_blocks // n_chunks, (chunk + 1) * n_blocks // n_chunks):
             start = blk * L
             stop = min(start + L, n)
-            for lane in range(L):
-                src = min(start + lane, n - 1)
-                P[0, lane] = points[src, 0]
-                P[1, lane] = points[src, 1]
-                P[2, lane] = points[src, 2]
+            load_lanes(points, start, P)
             _green_lanes(P, cage_v, faces, edges, face_edges, face_signs, normals, face_off,
                          edge_m, edge_off, grads, inv_twice, edge_len, inv_len2, V, E, F,
                          acc, near)

@@ -28,6 +28,7 @@ import numpy as np
 
 from cagekit.cage import cage_topology, distance_in_diagonals
 from cagekit.coords.fastangle import half_angle_over_sin
+from cagekit.coords.lanes import load_lanes
 from cagekit.frame import bounding_box_diagonal
 
 __all__ = ["mean_value_coordinates", "affine_extension_weights", "affine_extension_matrix",
@@ -307,11 +308,7 @@ def _mvc_kernel(points, cage_v, faces, edges, face_edges, face_signs, face_n, fa
         for blk in range(chunk * n_blocks // n_chunks, (chunk + 1) * n_blocks // n_chunks):
             start = blk * L
             stop = min(start + L, n)
-            for lane in range(L):
-                src = min(start + lane, n - 1)
-                P[0, lane] = points[src, 0]
-                P[1, lane] = points[src, 1]
-                P[2, lane] = points[src, 2]
+            load_lanes(points, start, P)
             _mvc_lanes(P, cage_v, faces, edges, face_edges, face_signs, face_n, face_off,
                        snap, np.nan, U, inv_d, G, X, lam, acc)
             for i in range(start, stop):

@@ -1,0 +1,23 @@
+"""Blocks of points for the vectorised coordinate kernels (:mod:`.mvc`, :mod:`.green`).
+
+Both kernels evaluate a block of points at a time, one point per lane, so that LLVM
+vectorises their loops over the lanes; this loads a block.
+"""
+
+from __future__ import annotations
+
+import numba
+
+__all__ = ["load_lanes"]
+
+
+@numba.njit(cache=True, inline="always")
+def load_lanes(points, start, P) -> None:
+    """Copy ``points[start:start + L]`` into the columns of ``P`` (3, L), repeating the last
+    point for the lanes past its end (their results are not read)."""
+    last = points.shape[0] - 1
+    for lane in range(P.shape[1]):
+        src = min(start + lane, last)
+        P[0, lane] = points[src, 0]
+        P[1, lane] = points[src, 1]
+        P[2, lane] = points[src, 2]
