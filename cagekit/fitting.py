@@ -316,8 +316,9 @@ def _push_cut_faces(cv, cf, v, f, margin, rounds=4):
     """
     import igl
 
+    soup = _cut_soup(v, f)
     for _ in range(rounds):
-        cut = _cut_faces(cv, cf, v, f)
+        cut = _cut_faces(cv, cf, v, f, soup=soup)
         if not cut.any():
             return cv
         push = np.zeros(len(cv))
@@ -430,20 +431,43 @@ def _n_components(f):
     return len(np.unique(face_components(int(f.max()) + 1, f))) if len(f) else 0
 
 
-def _cut_faces(cv, cf, v, f, alone=None):
-    """Cage faces that intersect an input face (exact test, pymeshlab), (c,) bool.
+def _cut_faces(cv, cf, v, f, alone=None, soup=None):
+    """Cage faces that intersect an input face (exact triangle-triangle test), (c,) bool.
 
-    The input's faces are taken as :func:`_cut_soup` gives them: proper faces, and a thin
-    triangle along each degenerate one (the test misreports zero-area faces).
-    ``alone``: the cage's own self-intersecting faces, when already known.
+    The input's faces are taken as :func:`_cut_soup` gives them (``soup``, when already
+    built): proper faces, and a thin triangle along each degenerate one. Only cage-input
+    pairs are tested, never the input's own faces against each other (a multi-part input
+    has many overlapping parts): :func:`_candidate_pairs` keeps the pairs that may meet,
+    then libigl's ``tri_tri_overlap_test_3d`` (coplanar overlaps included) decides.
+    ``alone``: the cage's own self-intersecting faces, when already known; they are left
+    out, as before.
     """
-    sv, sf = _cut_soup(v, f)
+    import igl
+
+    sv, sf = _cut_soup(v, f) if soup is None else soup
+    out = np.zeros(len(cf), dtype=bool)
     if not len(sf):
-        return np.zeros(len(cf), dtype=bool)
+        return out
     if alone is None:
         alone = self_intersecting_faces(cv, cf)
-    both = self_intersecting_faces(np.vstack([cv, sv]), np.vstack([cf, sf + len(cv)]))
-    return both[: len(cf)] & ~alone
+    C = np.ascontiguousarray(cv[cf])
+    T = np.ascontiguousarray(sv[sf])
+    cj, ti = _candidate_pairs(C, T, alone)
+    for j, i in zip(cj, ti):
+        if not out[j] and igl.tri_tri_overlap_test_3d(C[j, 0:1], C[j, 1:2], C[j, 2:3],
+                                                      T[i, 0:1], T[i, 1:2], T[i, 2:3]):
+            out[j] = True
+    return out
+
+
+def _candidate_pairs(C, T, skip):
+    """Pairs (cage face ``j``, input face ``i``) that may intersect: their bounding boxes
+    overlap and neither triangle has its three corners strictly on one side of the other's
+    plane (beyond a slack of ``1e-9`` of the coordinates' size, so that nearly touching
+    pairs go to the exact test). Cage faces flagged in ``skip`` are left out."""
+    from cagekit._cut_kernel import candidate_pairs
+
+    return candidate_pairs(C, T, skip)
 
 
 def _checks(cv, cf, v, f, samples, faces, components, cut_checked=False):
