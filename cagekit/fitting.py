@@ -137,7 +137,12 @@ def wrap_input(v, f):
     >>> len(wf), bool(np.all(_twice_areas(wv, wf) > 0))  # its segment and 3 corner points
     (4, True)
     """
-    sv, sf, used = _cut_soup(v, f, return_used=True)
+    return _with_stand_ins(v, *_cut_soup(v, f, return_used=True))
+
+
+def _with_stand_ins(v, sv, sf, used):
+    """:func:`wrap_input` from :func:`_cut_soup`'s ``(sv, sf, used)``: the soup plus a tiny
+    triangle at each vertex no proper face uses."""
     loose = v[~used]
     if not len(loose):
         return sv, sf
@@ -195,14 +200,15 @@ def _fresh_triangles(start, count):
     return np.stack([idx, idx + count, idx + 2 * count], axis=1)
 
 
-def _alpha_wrap(v, f, alpha, offset):
+def _alpha_wrap(v, f, alpha, offset, given=None):
     """Alpha wrap of a mesh or cloud (unit-diagonal frame); returns (V, F) or None.
 
-    The wrap is given :func:`wrap_input`'s proper triangles only (see there for why).
+    The wrap is given :func:`wrap_input`'s proper triangles only (see there for why);
+    ``given``: that input, when already built.
     """
     import pymeshlab
 
-    wv, wf = wrap_input(v, f)
+    wv, wf = wrap_input(v, f) if given is None else given
     ms = pymeshlab.MeshSet()
     ms.add_mesh(pymeshlab.Mesh(wv, wf))
     ms.generate_alpha_wrap(alpha=pymeshlab.PercentageValue(alpha * 100),
@@ -308,15 +314,16 @@ def _decimate_enclosing(cv, cf, faces, samples, margin, rounds):
     return cv, cf
 
 
-def _push_cut_faces(cv, cf, v, f, margin, rounds=4):
+def _push_cut_faces(cv, cf, v, f, margin, rounds=4, soup=None):
     """Push the vertices of cage faces that cross an input face outward by ``margin``.
 
     Samples can all lie inside while an input edge between them pokes through a cage face;
     the exact test finds those faces. Returns the vertices, or None if cuts remain.
+    ``soup``: :func:`_cut_soup`'s ``(sv, sf)``, when already built.
     """
     import igl
 
-    soup = _cut_soup(v, f)
+    soup = _cut_soup(v, f) if soup is None else soup
     for _ in range(rounds):
         cut = _cut_faces(cv, cf, v, f, soup=soup)
         if not cut.any():
@@ -342,10 +349,12 @@ def default_alphas(faces: int) -> tuple[float, ...]:
 
 def _fit_wrap(v, f, faces, samples, margin, offsets, alphas, rounds, components):
     failures = []
+    sv, sf, used = _cut_soup(v, f, return_used=True)  # once for every wrap and cut test
+    given = _with_stand_ins(v, sv, sf, used)
     for alpha in alphas:
         for offset in offsets:
             where = f"alpha {alpha:g}, offset {offset:g}"
-            wrapped = _alpha_wrap(v, f, alpha, offset)
+            wrapped = _alpha_wrap(v, f, alpha, offset, given)
             if wrapped is None:
                 failures.append(f"{where}: empty wrap")
                 continue
@@ -355,7 +364,7 @@ def _fit_wrap(v, f, faces, samples, margin, offsets, alphas, rounds, components)
                 continue
             cv, cf = decimated
             if len(f):
-                cv = _push_cut_faces(cv, cf, v, f, margin)
+                cv = _push_cut_faces(cv, cf, v, f, margin, soup=(sv, sf))
                 if cv is None:
                     failures.append(f"{where}: no_cut")
                     continue
