@@ -496,6 +496,39 @@ class CageSolution:
     evaluations: int
 
 
+class _Remembered:
+    """A :class:`CageEnergy` that remembers its evaluation at the start and at the lowest
+    energy so far: :func:`solve` evaluates the start before the optimiser, whose first call
+    is the same point, and the optimiser's best point after it; both are looked up, not
+    computed again (the energy is deterministic, so the figures are the same)."""
+
+    def __init__(self, energy):
+        self.energy = energy
+        self.kept = {}  # key -> (key's point, energy, gradient, values)
+        self.start = self.best = None
+
+    def evaluate(self, C):
+        C = np.asarray(C, dtype=np.float64)
+        key = (C.shape, C.tobytes())
+        if key in self.kept:
+            _, value, grad, values = self.kept[key]
+            return value, grad.copy(), dict(values)
+        value, grad, values = self.energy.evaluate(C)
+        if self.start is None:
+            self.start = key
+        if self.best is None or value < self.kept[self.best][1]:
+            if self.best is not None and self.best != self.start:
+                del self.kept[self.best]
+            self.best = key
+        if key in (self.start, self.best):
+            self.kept[key] = (C.copy(), value, grad.copy(), dict(values))
+        return value, grad, values
+
+    def __call__(self, C):
+        value, grad, _ = self.evaluate(C)
+        return value, grad
+
+
 def solve(problem: CageProblem, start=None, *, max_evaluations: int = 60,
           tolerance: float = 1e-7, progress=None) -> CageSolution:
     """Minimise a :class:`CageProblem`'s energy over the cage by L-BFGS.
@@ -519,9 +552,10 @@ def solve(problem: CageProblem, start=None, *, max_evaluations: int = 60,
     if C0.shape != problem.cage_v.shape:
         raise InputError(f"initial cage has {len(C0)} vertices, the cage "
                          f"{len(problem.cage_v)}")
-    initial, _, _ = problem.energy.evaluate(C0)
-    minimum = minimise(problem.energy, C0, max_evaluations, tolerance, progress)
-    total, _, terms = problem.energy.evaluate(minimum.x)
+    energy = _Remembered(problem.energy)
+    initial, _, _ = energy.evaluate(C0)
+    minimum = minimise(energy, C0, max_evaluations, tolerance, progress)
+    total, _, terms = energy.evaluate(minimum.x)
     return CageSolution(problem.vertices_of(minimum.x), minimum.x, terms, initial, total,
                         minimum.evaluations)
 
