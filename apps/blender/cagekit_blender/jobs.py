@@ -14,8 +14,6 @@ from __future__ import annotations
 
 import threading
 
-import bpy
-
 
 class Cancelled(Exception):
     """Raised by :class:`Progress` once the user cancelled."""
@@ -45,29 +43,25 @@ class Progress:
 
 
 def one_line(exc: BaseException) -> str:
-    """An exception as one line of text (cagekit's errors are written for people)."""
+    """An exception as one line of text (:func:`cagekit.files.one_line`), named by its type
+    unless it is one of cagekit's errors, which are written for people."""
     from cagekit.errors import InputError
+    from cagekit.files import one_line as line
 
-    text = " ".join(str(exc).split())
-    if isinstance(exc, (InputError, FloatingPointError)):
+    text = line(exc)
+    if isinstance(exc, (InputError, FloatingPointError)) or text == type(exc).__name__:
         return text
-    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+    return f"{type(exc).__name__}: {text}"
 
 
 class Job:
-    """Mixin for an operator: subclasses define ``gather``, ``compute`` and ``apply``."""
+    """Mixin for an operator, which defines ``gather(context) -> inputs`` (main thread;
+    raises on bad input), ``compute(inputs, progress) -> result`` (no ``bpy``; calls
+    ``progress(done, total, what)`` between steps) and ``apply(context, result)`` (main
+    thread), and a ``label`` for the status bar."""
 
     bl_options = {"REGISTER", "UNDO"}
     label = "working"
-
-    def gather(self, context):  # pragma: no cover - defined by each operator
-        raise NotImplementedError
-
-    def compute(self, inputs, progress):  # pragma: no cover
-        raise NotImplementedError
-
-    def apply(self, context, result) -> None:  # pragma: no cover
-        raise NotImplementedError
 
     def _fail(self, exc) -> set:
         self.report({"ERROR"}, one_line(exc))
@@ -141,10 +135,3 @@ def selected_and_active(context, role_selected: str, role_active: str):
     if not others:
         raise InputError(f"select the {role_selected} too (the {role_active} active)")
     return others, active
-
-
-def redraw() -> None:
-    """Ask every 3D view to redraw (nothing to do without a window)."""
-    for window in getattr(bpy.context.window_manager, "windows", []):
-        for area in window.screen.areas:
-            area.tag_redraw()

@@ -16,6 +16,7 @@ would overwrite ours).
 from __future__ import annotations
 
 import uuid
+from dataclasses import dataclass
 
 import bpy
 import numpy as np
@@ -33,8 +34,20 @@ COORDS = "cagekit_coords"
 TOKEN = "cagekit_bind_id"
 KEYS = (REST, REST_MATRIX, REST_CAGE, COORDS, TOKEN)
 
-#: object name -> (rest key, cagekit binding, last cage seen (k, 3) or None)
-_runtime: dict[str, list] = {}
+
+
+@dataclass
+class _Bound:
+    """What is kept in memory for a bound object: the :func:`_key` it was computed for, the
+    cagekit binding, and the cage last written from ((k, 3) world, None: write again)."""
+
+    key: tuple
+    binding: object
+    last: np.ndarray | None
+
+
+#: object name -> its binding in memory
+_runtime: dict[str, _Bound] = {}
 
 
 def is_bound(obj) -> bool:
@@ -53,11 +66,6 @@ def rest_state(obj):
             str(obj[COORDS]))
 
 
-def cage_world(cage) -> np.ndarray:
-    """(k, 3) float64: the cage's vertices in world space, as currently edited."""
-    return meshes.world_vertices(cage)
-
-
 def bind_object(obj, cage, coords: str, binding) -> None:
     """Record ``binding`` (of ``obj``'s world vertices to ``cage``'s) on ``obj``."""
     obj[REST] = meshes.local_vertices(obj).ravel()
@@ -66,7 +74,7 @@ def bind_object(obj, cage, coords: str, binding) -> None:
     obj[COORDS] = coords
     obj[TOKEN] = uuid.uuid4().hex
     obj.cagekit_cage = cage
-    _runtime[obj.name] = [_key(obj), binding, binding.cage_v.copy()]
+    _runtime[obj.name] = _Bound(_key(obj), binding, binding.cage_v.copy())
 
 
 def unbind_object(obj) -> None:
@@ -74,8 +82,15 @@ def unbind_object(obj) -> None:
     rest = _array(obj[REST])
     if len(rest) == len(obj.data.vertices):
         meshes.set_local_vertices(obj, rest)
+    forget(obj)
+
+
+def forget(obj) -> None:
+    """Drop ``obj``'s binding (its stored properties and what is in memory) as it is; a copy
+    of a bound object starts with none."""
     for name in KEYS:
-        del obj[name]
+        if name in obj:
+            del obj[name]
     obj.cagekit_cage = None
     _runtime.pop(obj.name, None)
 
@@ -91,39 +106,38 @@ def binding_of(obj):
     from cagekit.coords import bind
 
     entry = _runtime.get(obj.name)
-    if entry is None or entry[0] != _key(obj):
+    if entry is None or entry.key != _key(obj):
         V, C, coords = rest_state(obj)
-        binding = bind(V, C, obj.cagekit_cage and meshes.triangles(obj.cagekit_cage),
-                       method=coords, check=False)
-        entry = _runtime[obj.name] = [_key(obj), binding, C.copy()]
-    return entry[1]
+        binding = bind(V, C, meshes.triangles(obj.cagekit_cage), method=coords, check=False)
+        entry = _runtime[obj.name] = _Bound(_key(obj), binding, C.copy())
+    return entry.binding
 
 
-def update(obj, *, force: bool = False) -> bool:
+def update(obj) -> bool:
     """Move a bound object with its cage when the cage changed; True when it was moved."""
     cage = obj.cagekit_cage
-    if obj.mode == "EDIT" or cage is None or cage.type != "MESH":
+    if obj.mode == "EDIT" or cage.type != "MESH":
         return False
     binding = binding_of(obj)
-    C = cage_world(cage)
+    C = meshes.world_vertices(cage)
     entry = _runtime[obj.name]
     if C.shape != binding.cage_v.shape:  # the cage's topology was edited: keep the mesh
         return False
-    if not force and entry[2] is not None and np.array_equal(C, entry[2]):
+    if entry.last is not None and np.array_equal(C, entry.last):
         return False
     meshes.set_world_vertices(obj, binding.deform(C))
-    entry[2] = C
+    entry.last = C
     return True
 
 
-def update_all(*, force: bool = False) -> int:
+def update_all() -> int:
     """:func:`update` every bound object; the number moved."""
     moved, bound = 0, [obj for obj in bpy.data.objects if is_bound(obj)]
     for name in set(_runtime) - {obj.name for obj in bound}:  # deleted or unbound
         del _runtime[name]
     for obj in bound:
         try:
-            moved += update(obj, force=force)
+            moved += update(obj)
         except Exception as exc:  # noqa: BLE001 - a handler must never raise
             print(f"cagekit: {obj.name}: {' '.join(str(exc).split())}")
     return moved
@@ -139,7 +153,7 @@ def on_undo(scene, *args) -> None:
     # the objects' world matrices are evaluated only by the next depsgraph update: the
     # meshes are rewritten then (the restored data already agrees with the cage)
     for entry in _runtime.values():
-        entry[2] = None
+        entry.last = None
 
 
 @persistent

@@ -11,10 +11,12 @@ from __future__ import annotations
 
 import os
 import tempfile
+import warnings
 
 import bpy
-import numpy as np
 from bpy.props import EnumProperty, IntProperty, StringProperty
+
+from cagekit.errors import InputError
 
 from . import jobs, live, meshes
 
@@ -34,10 +36,7 @@ def _copy_with(obj, name: str, V, collection):
     new.data = obj.data.copy()
     new.name = new.data.name = name
     new.animation_data_clear()
-    for key in live.KEYS:
-        if key in new:
-            del new[key]
-    new.cagekit_cage = None
+    live.forget(new)
     new.modifiers.clear()
     collection.objects.link(new)
     meshes.set_world_vertices(new, V)
@@ -105,39 +104,39 @@ class CAGEKIT_OT_bind(jobs.Job, bpy.types.Operator):
         from cagekit.cage import check_cage
 
         targets, cage = jobs.selected_and_active(context, "meshes to bind", "cage")
-        meshes.mesh_object(cage, "the cage")
         cage_v, cage_f = meshes.world_mesh(cage, "the cage")
         try:
             cage_f = check_cage(cage_v, cage_f)
-        except Exception as exc:
+        except InputError as exc:
             raise type(exc)(f"cage {cage.name!r}: {exc}") from None
         shapes = [(o.name, meshes.world_mesh(o, "the mesh to bind")[0]) for o in targets]
         return cage.name, cage_v, cage_f, shapes
 
     def compute(self, inputs, progress):
-        from cagekit.cage import winding_numbers
         from cagekit.coords import bind
+        from cagekit.coords.binding import warn_outside
 
         cage_name, cage_v, cage_f, shapes = inputs
         out = []
         for i, (name, V) in enumerate(shapes):
             progress(i, len(shapes), name)
-            binding = bind(V, cage_v, cage_f, method=self.coords)
-            outside = float(np.mean(winding_numbers(V, cage_v, cage_f) < 0.5 - 1e-9))
-            out.append((name, binding, outside))
+            binding = bind(V, cage_v, cage_f, method=self.coords, check=False)  # gather did
+            with warnings.catch_warnings(record=True) as caught:  # as the commands warn
+                warnings.simplefilter("always")
+                warn_outside(V, cage_v, cage_f, shape=name, cage=cage_name)
+            out.append((name, binding, [str(w.message) for w in caught]))
         return cage_name, out
 
     def apply(self, context, result):
         cage_name, bound = result
         cage = bpy.data.objects[cage_name]
-        for name, binding, outside in bound:
+        for name, binding, warned in bound:
             obj = bpy.data.objects[name]
             if live.is_bound(obj):
                 live.unbind_object(obj)
             live.bind_object(obj, cage, self.coords, binding)
-            if outside:
-                self.report({"WARNING"}, f"cagekit: {100 * outside:.3g}% of {name} lies "
-                                         f"outside {cage_name}: extrapolated")
+            for text in warned:
+                self.report({"WARNING"}, f"cagekit: {text}")
         self.report({"INFO"}, f"cagekit: {len(bound)} mesh(es) bound to {cage_name}")
 
 
@@ -182,7 +181,7 @@ class CAGEKIT_OT_deform_to_target(jobs.Job, bpy.types.Operator):
     def gather(self, context):
         sources, target = jobs.selected_and_active(context, "source", "target")
         if len(sources) != 1:
-            raise _input_error(f"select one source (selected: {len(sources)})")
+            raise InputError(f"select one source (selected: {len(sources)})")
         source = sources[0]
         cage = (_object(self.cage, "cage") if self.cage
                 else source.cagekit_cage if live.is_bound(source) else None)
@@ -215,16 +214,10 @@ class CAGEKIT_OT_deform_to_target(jobs.Job, bpy.types.Operator):
                               f"({res.iterations} evaluations)")
 
 
-def _input_error(text):
-    from cagekit.errors import InputError
-
-    return InputError(text)
-
-
 def _object(name: str, role: str):
     obj = bpy.data.objects.get(name) if name else None
     if obj is None:
-        raise _input_error(f"no {role}: name an object" if not name
+        raise InputError(f"no {role}: name an object" if not name
                            else f"{role} {name!r} is not an object of this file")
     return meshes.mesh_object(obj, role)
 
@@ -261,10 +254,10 @@ class CAGEKIT_OT_transfer_pose(jobs.Job, bpy.types.Operator):
         character = _object(self.character, "character")
         coll = bpy.data.collections.get(self.poses)
         if coll is None:
-            raise _input_error(f"poses: {self.poses!r} is not a collection of this file")
+            raise InputError(f"poses: {self.poses!r} is not a collection of this file")
         poses = [o for o in coll.objects if o.type == "MESH"]
         if not poses:
-            raise _input_error(f"collection {coll.name!r} holds no mesh")
+            raise InputError(f"collection {coll.name!r} holds no mesh")
         if self.landmarks == "files":
             marks = [load_landmarks(bpy.path.abspath(p))
                      for p in (self.template_landmarks, self.character_landmarks)]
@@ -316,14 +309,14 @@ class CAGEKIT_OT_amplify(jobs.Job, bpy.types.Operator):
     def gather(self, context):
         coll = bpy.data.collections.get(self.collection)
         if coll is None:
-            raise _input_error(f"{self.collection!r} is not a collection of this file")
+            raise InputError(f"{self.collection!r} is not a collection of this file")
         objects = [o for o in coll.objects if o.type == "MESH"]
         if len(objects) < 2:
-            raise _input_error(f"collection {coll.name!r} needs at least 2 meshes "
+            raise InputError(f"collection {coll.name!r} needs at least 2 meshes "
                                f"(has {len(objects)})")
         names = [o.name for o in objects]
         if len({_file_name(n) for n in names}) < len(names):
-            raise _input_error("two meshes of the collection have names that differ only "
+            raise InputError("two meshes of the collection have names that differ only "
                                "in characters a file name cannot hold: rename one")
         return coll.name, [(o.name, meshes.world_mesh(o, "mesh")) for o in objects]
 
