@@ -170,6 +170,7 @@ def transfers(data: Path, poses: int, picture=None, shown="arms_down"):
     from apps import deformation_transfer as dt
     from apps import humanoid_data
     from cagekit import io
+    from cagekit.coords import bind
     from cagekit.landmarks import load_landmarks
     from cagekit.surface_binding import bind_surface
 
@@ -199,9 +200,11 @@ def transfers(data: Path, poses: int, picture=None, shown="arms_down"):
             except Exception as exc:  # a character whose cage cannot be fitted: listed
                 print(f"{name:<12}cage fit failed: {exc}")
                 continue
+            mvc = bind(Vc, char.cage_v, char.cage_f, check=False).weights  # as fit_character
             chars = {"mvc": char, "green": dataclasses.replace(char, binding=bind_surface(
-                Vc, Fc, char.cage_v, char.cage_f, weights=char.binding.weights,
-                coords="green"))}
+                Vc, Fc, char.cage_v, char.cage_f, weights=mvc, coords="green"))}
+            if picture and name == shown:
+                pictured["truth"] = [(truth, Fc) for truth in truths[:4]]
             for coords, refine in methods:
                 per = []
                 for i, (cage, truth) in enumerate(zip(cages, truths)):
@@ -210,9 +213,6 @@ def transfers(data: Path, poses: int, picture=None, shown="arms_down"):
                     seconds = time.perf_counter() - t0
                     if picture and name == shown and refine and i < 4:
                         pictured.setdefault(coords, []).append((X, Fc))
-                        pictured.setdefault("truth", [])
-                        if len(pictured["truth"]) <= i:
-                            pictured["truth"].append((truth, Fc))
                     per.append({**bt.scores(Vc, Fc, truth, X), "seconds": seconds,
                                 "conformal": conformal_distortion(Vc, Fc, X)["mean"]})
                 row = {k: float(np.mean([p[k] for p in per])) for k in keys}
