@@ -340,7 +340,8 @@ def _shape_rows(Vs_n, Fs, shape_points, rng):
     """Rows (own vertex, neighbourhood) of the shape terms, compacted to the points used."""
     nb = vertex_neighborhoods(Vs_n, Fs, k=16)
     rows = subset(len(Vs_n), shape_points, rng)
-    index, mask = nb.index[rows], nb.mask[rows]
+    columns = nb.mask[rows].any(axis=0)  # a prefix: drop the padding no chosen row needs
+    index, mask = nb.index[rows][:, columns], nb.mask[rows][:, columns]
     used, inverse = np.unique(np.concatenate([rows, index.ravel()]), return_inverse=True)
     own = inverse[: len(rows)]
     return used, own, inverse[len(rows):].reshape(index.shape), mask

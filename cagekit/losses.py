@@ -407,7 +407,7 @@ def _planes(X, index, mask):
     P = X[index]
     centroid = np.einsum("rj,rjk->rk", w, P) / m[:, None]
     D = (P - centroid[:, None, :]) * w[:, :, None]
-    cov = np.einsum("rji,rjk->rik", D, D) / m[:, None, None]
+    cov = np.matmul(D.transpose(0, 2, 1), D) / m[:, None, None]
     lam, vec = np.linalg.eigh(cov)
     return lam, vec, centroid, D, m
 
@@ -470,9 +470,9 @@ def _normal_backward(g, lam, vec, D, m, mask):
         gap = lam[:, k] - lam[:, 0]
         ok = gap > gap_floor
         a = np.where(ok, np.einsum("ri,ri->r", g, vec[:, :, k]) / np.where(ok, gap, 1.0), 0.0)
-        outer = np.einsum("r,ri,rj->rij", a, vec[:, :, k], n)
+        outer = (a[:, None] * vec[:, :, k])[:, :, None] * n[:, None, :]
         G -= 0.5 * (outer + outer.transpose(0, 2, 1))
-    return (2.0 / m)[:, None, None] * np.einsum("rik,rjk->rji", G, D) * mask[:, :, None]
+    return (2.0 / m)[:, None, None] * np.matmul(D, G.transpose(0, 2, 1)) * mask[:, :, None]
 
 
 def shape_losses(X, ref: ShapeReference, p2f_weight: float = 1.0,

@@ -405,3 +405,27 @@ def test_the_detail_term_lowers_dcotlap(blob, blob_cage):
     cd_scale = evaluate(blob, (Vt, F), (scale.vertices, F))["cd"]
     assert figures[10.0]["dcotlap"] < figures[1.0]["dcotlap"] < figures[0.0]["dcotlap"]
     assert figures[10.0]["cd"] < 0.7 * cd_scale
+
+
+def test_shape_rows_keep_only_the_columns_their_rows_need():
+    # a fan's centre of degree 12 sets the width of the one-ring arrays (13); rows that
+    # do not include it are trimmed to their own widest neighbourhood, members unchanged
+    from cagekit.deformation import _shape_rows
+    from cagekit.geometry import vertex_neighborhoods
+
+    V, F = bumpy_blob()
+    angles = np.linspace(0, 2 * np.pi, 12, endpoint=False)
+    fan = np.vstack([[3.0, 0, 0], np.c_[3 + np.cos(angles), np.sin(angles), 0 * angles]])
+    ring = len(V) + 1 + np.arange(12)
+    fan_f = np.c_[np.full(12, len(V)), ring, np.roll(ring, -1)]
+    V, F = np.vstack([V, fan]), np.vstack([F, fan_f])
+    nb = vertex_neighborhoods(V, F)
+    assert nb.mask.shape[1] == 13
+    used, own, index, mask = _shape_rows(V, F, 40, np.random.default_rng(0))
+    rows = used[own]
+    assert len(V) - 13 not in rows  # the centre is not a chosen row
+    assert index.shape == mask.shape and mask.any(axis=0).all()
+    assert mask.shape[1] == mask.sum(axis=1).max() <= 7
+    for r, row in enumerate(rows):
+        members = used[index[r][mask[r]]]
+        np.testing.assert_array_equal(members, nb.index[row][nb.mask[row]])

@@ -679,3 +679,21 @@ def test_neighbourhoods_without_a_plane_are_dropped():
     line = shape_reference(X, [0], [[0, 1, 2, 3]], [[True] * 4])
     values, grad = shape_losses(X + 1e-7, line)
     assert values == {"p2f": 0.0, "normal": 0.0} and not grad.any()
+
+
+def test_padding_columns_do_not_change_the_shape_losses():
+    # the optimiser drops the padding no chosen row needs (deformation._shape_rows):
+    # the same rows with extra padded columns give the same values and gradient
+    X0, F = rest_shape(seed=3)
+    nb = vertex_neighborhoods(X0, F)
+    rows = np.arange(0, len(X0), 3)
+    ref = shape_reference(X0, rows, nb.index[rows], nb.mask[rows])
+    pad = np.repeat(ref.own[:, None], 5, axis=1)
+    padded = ref._replace(index=np.hstack([ref.index, pad]),
+                          mask=np.hstack([ref.mask, np.zeros(pad.shape, bool)]))
+    X = X0 + 0.05 * np.random.default_rng(3).normal(size=X0.shape)
+    values, grad = shape_losses(X, ref)
+    values_padded, grad_padded = shape_losses(X, padded)
+    for name in values:
+        assert values_padded[name] == pytest.approx(values[name], rel=1e-12)
+    np.testing.assert_allclose(grad_padded, grad, rtol=1e-10, atol=1e-14 * abs(grad).max())
