@@ -24,12 +24,13 @@ degrees).
 ``cage`` without the part-affinity and detail terms (``weights={"parts": 0, "detail":
 0}``: the settings before issue 17, parts free to bend). Then one
 timing of ``cage`` on a ~10,000-vertex source (a chair at resolution 1.5) with a 200-face
-cage, with the cage fitted inside the call and with the cage given.
+cage, with the cage fitted inside the call and with the cage given, and of ``cage`` on
+every real furniture model of 8,000-12,500 vertices (:func:`real_speed_check`).
 
 Usage::
 
     python benchmarks/bench_deform.py [--cache DIR] [--picture PNG] [--json FILE]
-        [--furniture-pictures DIR] [--partial-only]
+        [--furniture-pictures DIR] [--partial-only] [--speed-only]
 
 ``--cache`` is where ``/usr/share/doc/libcgal-dev/data.tar.gz`` is (or will be)
 unpacked; without the archive the animal pairs are skipped.
@@ -102,8 +103,9 @@ def furniture_kind(name: str) -> str | None:
     return next((kind for kind, words in KIND_WORDS if any(w in low for w in words)), None)
 
 
-def furniture_pairs():
-    """(name, source, target, None) for consecutive models of each kind."""
+def furniture_by_kind() -> dict:
+    """{kind: [(model, (V, F)), ...]} of the furniture catalogs' models, in catalog order
+    (empty when the package is missing)."""
     from cagekit.datasets.sweethome3d import FURNITURE_CATALOGS, models
     from cagekit.errors import InputError
 
@@ -112,15 +114,19 @@ def furniture_pairs():
     except InputError as exc:
         print(f"sweethome3d-furniture not found ({exc}): real furniture skipped",
               file=sys.stderr)
-        return []
+        return {}
     kinds = {}
     for model in found:
         kind = furniture_kind(model.name)
         if kind is not None:
-            kinds.setdefault(kind, []).append(model)
+            kinds.setdefault(kind, []).append((model, load_mesh(model.path)))
+    return kinds
+
+
+def furniture_pairs():
+    """(name, source, target, None) for consecutive models of each kind."""
     out = []
-    for kind, members in kinds.items():
-        meshes = [(m, load_mesh(m.path)) for m in members]
+    for kind, meshes in furniture_by_kind().items():
         meshes = [(m, mesh) for m, mesh in meshes if len(mesh[0]) <= MAX_REAL_VERTICES]
         for (a, mesh_a), (b, mesh_b) in list(zip(meshes, meshes[1:]))[:PAIRS_PER_KIND]:
             out.append((f"{kind}: {a.name} -> {b.name}", mesh_a, mesh_b, None))
@@ -246,6 +252,38 @@ def speed_check():
             fitted, "seconds_cage_given": given}
 
 
+def real_speed_check(low: int = 8000, high: int = 12500, calls: int = 3) -> list[dict]:
+    """Every real furniture model of ``low``-``high`` vertices as a source, onto the next
+    model of its kind: ``cagekit.fit_cage`` alone (as ``deform`` calls it, 5,000 samples)
+    and ``cagekit.deform`` (fit included),
+    the median of ``calls`` calls each, in seconds."""
+    rows = []
+    print(f"\nspeed on real sources of {low:,}-{high:,} vertices (median of {calls} calls, "
+          "seconds)")
+    print(f"{'pair':<52}{'verts':>7}{'fit':>7}{'deform':>8}")
+    for kind, meshes in furniture_by_kind().items():
+        for i, (model, source) in enumerate(meshes):
+            if not low <= len(source[0]) <= high:
+                continue
+            target_model, target = meshes[(i + 1) % len(meshes)]
+            cagekit.deform(source, target, max_evaluations=2)  # caches, first-call costs
+            fit, total = [], []
+            for _ in range(calls):
+                t0 = time.perf_counter()
+                cagekit.fit_cage(*source, samples=5000)  # as deform fits it
+                fit.append(time.perf_counter() - t0)
+                t0 = time.perf_counter()
+                cagekit.deform(source, target)
+                total.append(time.perf_counter() - t0)
+            row = {"pair": f"{kind}: {model.name} -> {target_model.name}",
+                   "source_vertices": len(source[0]), "seconds_fit": float(np.median(fit)),
+                   "seconds": float(np.median(total))}
+            rows.append(row)
+            print(f"{row['pair'][:51]:<52}{row['source_vertices']:>7}"
+                  f"{row['seconds_fit']:>7.2f}{row['seconds']:>8.2f}", flush=True)
+    return rows
+
+
 def picture(path, source, target, name, symmetry):
     from cagekit.render import render_meshes
 
@@ -363,9 +401,19 @@ def main():
                         help="write pictures of 6 real furniture pairs into DIR")
     parser.add_argument("--partial-only", action="store_true",
                         help="only the partial-target comparison (real chairs)")
+    parser.add_argument("--speed-only", action="store_true",
+                        help="only the timings: the ~10,000-vertex procedural chair, and "
+                        "every real source of 8,000-12,500 vertices")
     args = parser.parse_args()
     if args.partial_only:
         partial_targets()
+        return
+    if args.speed_only:
+        speed = speed_check()
+        print(f"{speed['vertices']}-vertex procedural chair: "
+              f"{speed['seconds_fit_included']:.2f} s with the fit, "
+              f"{speed['seconds_cage_given']:.2f} s with the cage given")
+        real_speed_check()
         return
 
     rows = []
@@ -421,10 +469,12 @@ def main():
     if args.picture and chosen is not None:
         picture(args.picture, *chosen)
         print(f"wrote {args.picture}")
+    real_speed = real_speed_check()
     partial = partial_targets()
     if args.json:
         with open(args.json, "w") as f:
-            json.dump({"pairs": rows, "speed": speed, "partial": partial}, f, indent=1)
+            json.dump({"pairs": rows, "speed": speed, "real_speed": real_speed,
+                       "partial": partial}, f, indent=1)
     if args.furniture_pictures:
         furniture_pictures(args.furniture_pictures)
 
