@@ -39,6 +39,7 @@ unpacked; without the archive the animal pairs are skipped.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import os
 import sys
@@ -103,9 +104,11 @@ def furniture_kind(name: str) -> str | None:
     return next((kind for kind, words in KIND_WORDS if any(w in low for w in words)), None)
 
 
+@functools.cache
 def furniture_by_kind() -> dict:
     """{kind: [(model, (V, F)), ...]} of the furniture catalogs' models, in catalog order
-    (empty when the package is missing)."""
+    (empty when the package is missing); loaded once a run, for every part that uses them
+    (read only)."""
     from cagekit.datasets.sweethome3d import FURNITURE_CATALOGS, models
     from cagekit.errors import InputError
 

@@ -505,24 +505,24 @@ class _Remembered:
 
     def __init__(self, energy):
         self.energy = energy
-        self.kept = {}  # key -> (key's point, energy, gradient, values)
+        self.kept = {}  # key -> (energy, gradient, values)
         self.start = self.best = None
 
     def evaluate(self, C):
         C = np.asarray(C, dtype=np.float64)
         key = (C.shape, C.tobytes())
         if key in self.kept:
-            _, value, grad, values = self.kept[key]
+            value, grad, values = self.kept[key]
             return value, grad.copy(), dict(values)
         value, grad, values = self.energy.evaluate(C)
         if self.start is None:
             self.start = key
-        if self.best is None or value < self.kept[self.best][1]:
+        if self.best is None or value < self.kept[self.best][0]:
             if self.best is not None and self.best != self.start:
                 del self.kept[self.best]
             self.best = key
         if key in (self.start, self.best):
-            self.kept[key] = (C.copy(), value, grad.copy(), dict(values))
+            self.kept[key] = (value, grad.copy(), dict(values))
         return value, grad, values
 
     def __call__(self, C):
