@@ -22,14 +22,30 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(BIN)/python -m pytest -q -n 2 tests
 
-# the same tests as compiled for another CPU: numba for a generic x86-64 (no AVX2, no FMA)
-# and numpy without its AVX2/AVX-512 kernels; results differ in the last bits, tests must not
-EMULATED_CPU := NUMBA_CPU_NAME=generic
+# The same tests as another CPU would run them: every library that picks its kernels by CPU is
+# told to act as an older one (tests/cpu_kernels.py; the log's "cpu and kernels" part shows what
+# each run used). Results differ in the last bits; the tests must not.
+#   x86-64-v2: a Nehalem-class CPU, SSE4.2, no AVX (numba generic x86-64, numpy's baseline only,
+#              OpenBLAS Nehalem, torch's default ATen kernels, MKL SSE4.2, oneDNN SSE4.1)
+#   haswell:   AVX2 and FMA, no AVX-512 (numba haswell, numpy without X86_V4, OpenBLAS Haswell,
+#              ATen AVX2, MKL AVX2, oneDNN AVX2)
+# Elsewhere than x86-64 only numba is told (generic); numpy's and OpenBLAS's names are per machine.
 ifeq ($(shell uname -m),x86_64)
-EMULATED_CPU += NPY_DISABLE_CPU_FEATURES="X86_V3 X86_V4 AVX512_ICL AVX512_SPR"
+EMULATIONS := x86-64-v2 haswell
+CPU_x86-64-v2 := NUMBA_CPU_NAME=generic NPY_DISABLE_CPU_FEATURES="X86_V3 X86_V4 AVX512_ICL AVX512_SPR" \
+	OPENBLAS_CORETYPE=Nehalem ATEN_CPU_CAPABILITY=default MKL_ENABLE_INSTRUCTIONS=SSE4_2 ONEDNN_MAX_CPU_ISA=SSE41
+CPU_haswell := NUMBA_CPU_NAME=haswell NPY_DISABLE_CPU_FEATURES="X86_V4 AVX512_ICL AVX512_SPR" \
+	OPENBLAS_CORETYPE=Haswell ATEN_CPU_CAPABILITY=avx2 MKL_ENABLE_INSTRUCTIONS=AVX2 ONEDNN_MAX_CPU_ISA=AVX2
+else
+EMULATIONS := generic
+CPU_generic := NUMBA_CPU_NAME=generic ATEN_CPU_CAPABILITY=default
 endif
-test-emulated: $(STAMP)
-	$(EMULATED_CPU) $(BIN)/python -m pytest -q -n 2 -p no:cacheprovider tests
+test-emulated: $(addprefix test-as-,$(EMULATIONS))
+
+# one emulation: make test-as-haswell (or test-as-x86-64-v2)
+test-as-%: $(STAMP)
+	@echo '== the tests as a $* CPU would run them: $(CPU_$*)'
+	env $(CPU_$*) $(BIN)/python -m pytest -q -n 2 -p no:cacheprovider tests
 
 test-slow: $(STAMP)
 	$(BIN)/python -m pytest -q -m slow tests

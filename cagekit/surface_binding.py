@@ -88,8 +88,8 @@ def coupled_share(weights) -> float:
 
     Examples
     --------
-    >>> coupled_share(np.array([[0.5, 0.5], [2.5, -1.5], [1.2, -0.2]]))
-    0.3333333333333333
+    >>> round(coupled_share(np.array([[0.5, 0.5], [2.5, -1.5], [1.2, -0.2]])), 4)
+    0.3333
     """
     return float(np.mean(negative_mass(weights) > 1.0))
 

@@ -40,3 +40,16 @@ def _read_only(folder):
 def read_only():
     """``with read_only(folder):`` makes a folder read-only, for root too."""
     return _read_only
+
+
+def pytest_terminal_summary(terminalreporter):
+    """The CPU and the kernels this run used (numba, numpy, OpenBLAS, torch), also under -q."""
+    from cpu_kernels import kernels
+
+    found = kernels()
+    terminalreporter.write_sep("-", "cpu and kernels")
+    terminalreporter.write_line(f"cpu: {found['cpu']}")
+    terminalreporter.write_line(
+        f"kernels: numba {found['numba']}; numpy {' '.join(found['numpy']) or 'baseline only'}; "
+        f"openblas {', '.join(found['openblas'])}; torch {found['torch']}")
+    terminalreporter.write_line(f"emulation: {found['emulation'] or 'none (this CPU)'}")
