@@ -8,7 +8,14 @@ the loss is ``L_align + ALPHA_MVC * L_MVC + alpha_shape * (L_p2f + L_normal) [+ 
 corresponding points with ``align="l2"``). Adam at ``lr``, N_c at :data:`NC_LR_FACTOR` of it.
 Everything random is a function of ``(seed, epoch, step)`` and checkpoints hold the model,
 the optimiser, the counters and the RNG state, so a resumed run computes the weights of
-one never stopped. A step whose loss or gradient is not finite is skipped (on every rank).
+one never stopped; a resumed run reads the data it is given, takes every other setting from
+its checkpoint but the budget and the device (:data:`FROM_THE_CALLER`), and refuses a
+checkpoint ``deform --model`` would refuse. A step that cannot be taken finitely is skipped
+on every rank, the parameters and the optimiser's state left as they were before it: a loss
+or gradient that is not finite, cages that are not (:class:`NonFiniteStep`), a
+linear-algebra routine that fails on what overflowed (``LinAlgError``), or an update that
+leaves a weight or Adam's state non-finite; the first skip is warned about (one line), all
+are counted.
 Under torchrun (``torchrun -m cagekit.cli train``) the model is wrapped in
 DistributedDataParallel and each rank takes its shard of every epoch's pairs; rank 0 writes
 the log and the checkpoints. With a fixed source (one template character, its poses as the
@@ -23,13 +30,16 @@ import math
 import os
 import sys
 import time
+import warnings
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+import numpy as np
 import torch
 
-from cagekit.errors import InputError
+from cagekit.errors import CagekitWarning, InputError
+from cagekit.geometry import as_count
 from cagekit.losses import ALPHA_MVC, ALPHA_SHAPE
 from cagekit.progress import progress_bar, progress_enabled
 from cagekit_learn import losses
@@ -52,12 +62,20 @@ from cagekit_learn.data import (
 from cagekit_learn.networks import ModelConfig, NeuralCages
 
 __all__ = ["TrainConfig", "TrainResult", "Trainer", "train", "training_loss", "load_collection",
-           "load_model", "load_source_cage", "LOG_NAME", "TERMS"]
+           "load_model", "load_source_cage", "resume_config", "fixed_source_matches",
+           "source_cage_matches", "NonFiniteStep", "LOG_NAME", "TERMS", "MAX_LR",
+           "FROM_THE_CALLER"]
 
 LOG_NAME = "log.csv"
 TERMS = ("align", "mvc", "p2f", "normal", "symmetry")
 #: N_c's learning rate relative to ``lr`` (the paper's ratio)
 NC_LR_FACTOR = 0.1
+#: the largest learning rate accepted: Adam moves each weight by about ``lr`` a step, so
+#: beyond it the first steps overflow float32 (the paper's is 1e-3)
+MAX_LR = 1.0
+#: settings a resumed run takes from the caller's config (the data, the budget and the
+#: device); every other one is the checkpoint's
+FROM_THE_CALLER = ("data", "epochs", "max_steps", "max_minutes", "device")
 #: settings that earlier versions stored and this one fixes (a checkpoint with other
 #: values is refused on resume rather than continued differently)
 _RETIRED_SETTINGS = {"alpha_mvc": ALPHA_MVC, "alpha_symmetry": 1.0,
@@ -76,6 +94,7 @@ class TrainConfig:
     run_dir : str
         Where the checkpoint, the log and the config go.
     epochs, batch_size, lr : int, int, float
+        ``lr`` in ``(0, MAX_LR]`` (:data:`MAX_LR`, 1).
     points : int
         Samples per shape.
     seed : int
@@ -285,8 +304,14 @@ def training_loss(model, source, target, config: TrainConfig, knn: int = 16):
     total : scalar tensor
     terms : dict of str to float
         Each term's batch mean (unweighted).
+
+    Raises
+    ------
+    NonFiniteStep
+        The model's cages hold NaN or inf (weights or a batch that overflowed).
     """
     out = model(source, target)
+    _require_finite_cages(out)
     net = _unwrap(model)
     cage_f = net.cage_f
     green = getattr(net.config, "coords", "mvc") == "green"
@@ -327,6 +352,25 @@ def training_loss(model, source, target, config: TrainConfig, knn: int = 16):
         terms["symmetry"] = symm.mean()
         total = total + terms["symmetry"]
     return total, {name: float(value.detach()) for name, value in terms.items()}
+
+
+class NonFiniteStep(FloatingPointError):
+    """A training step's values are not finite (NaN or inf), so it cannot be taken: the
+    training loop skips it (:meth:`Trainer.step`)."""
+
+
+def _require_finite_cages(out: dict) -> None:
+    """Raise :class:`NonFiniteStep` when the model's source or deformed cage is not finite.
+
+    Parameters
+    ----------
+    out : dict
+        The model's output, with ``source_cage`` and ``deformed_cage`` (B, k, 3) tensors.
+    """
+    for name in ("source_cage", "deformed_cage"):
+        if not bool(torch.isfinite(out[name].detach()).all()):
+            raise NonFiniteStep(f"the model's {name.replace('_', ' ')} is not finite "
+                                "(NaN or inf)")
 
 
 def _green_deformed(source, source_cage, deformed_cage, cage_f):
@@ -414,16 +458,61 @@ def _device(name: str, local_rank: int) -> torch.device:
     return torch.device("cpu")
 
 
-def _all_finite(loss, model, world) -> bool:
-    ok = bool(torch.isfinite(loss)) and all(
-        p.grad is None or bool(torch.isfinite(p.grad).all()) for p in model.parameters())
-    if world > 1:
-        import torch.distributed as dist
+def _agree(ok: bool, device: torch.device, world: int) -> bool:
+    """Whether ``ok`` holds on every rank (an all-reduce under torchrun)."""
+    if world <= 1:
+        return ok
+    import torch.distributed as dist
 
-        flag = torch.tensor([1.0 if ok else 0.0], device=loss.device)
-        dist.all_reduce(flag, op=dist.ReduceOp.MIN)
-        ok = bool(flag.item() > 0.5)
-    return ok
+    flag = torch.tensor([1.0 if ok else 0.0], device=device)
+    dist.all_reduce(flag, op=dist.ReduceOp.MIN)
+    return bool(flag.item() > 0.5)
+
+
+def _finite(tensors) -> bool:
+    """Whether every tensor of ``tensors`` is finite (one device synchronisation).
+
+    The tensors may lie on several devices (Adam keeps its step counts on the CPU).
+    """
+    flags = [torch.isfinite(t).all() for t in tensors]
+    if not flags:
+        return True
+    return bool(torch.stack([f.to(flags[0].device) for f in flags]).all())
+
+
+def _all_finite(loss, model, world) -> bool:
+    """Whether the loss and every gradient are finite, on every rank."""
+    grads = [p.grad for p in model.parameters() if p.grad is not None]
+    return _agree(_finite([loss.detach(), *grads]), loss.device, world)
+
+
+def _state_tensors(model, optimizer) -> list:
+    """The model's weights and the optimiser's floating-point state tensors."""
+    state = [v for entry in optimizer.state.values() for v in entry.values()
+             if isinstance(v, torch.Tensor) and v.is_floating_point()]
+    return [*model.parameters(), *state]
+
+
+def _snapshot(model, optimizer):
+    """Copies of the model's weights and the optimiser's state, to undo an update."""
+    weights = [p.detach().clone() for p in model.parameters()]
+    state = {p: {k: v.clone() if isinstance(v, torch.Tensor) else v for k, v in entry.items()}
+             for p, entry in optimizer.state.items()}
+    return weights, state
+
+
+def _undo(model, optimizer, snapshot) -> None:
+    """Put back the weights and optimiser state of :func:`_snapshot`."""
+    weights, state = snapshot
+    with torch.no_grad():
+        for p, saved in zip(model.parameters(), weights):
+            p.copy_(saved)
+    optimizer.state.clear()
+    optimizer.state.update(state)
+
+
+#: what computing a step's loss raises when its values overflow: the step is skipped
+_STEP_FAILURES = (FloatingPointError, torch.linalg.LinAlgError, np.linalg.LinAlgError)
 
 
 # ---------------------------------------------------------------------------- logging
@@ -476,9 +565,16 @@ class _Log:
 
 @contextmanager
 def _usable(path):
-    """Turn what a malformed checkpoint makes torch or Python raise into an InputError."""
+    """Turn what a malformed checkpoint makes torch or Python raise into an InputError.
+
+    An InputError raised inside is passed on, given ``path`` when it names no file.
+    """
     try:
         yield
+    except InputError as exc:
+        if exc.path is not None:
+            raise
+        raise InputError(exc.problem, str(path)) from None
     except (KeyError, TypeError, ValueError, RuntimeError, AttributeError) as exc:
         first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
         raise InputError(f"not a usable cagekit checkpoint ({type(exc).__name__}: "
@@ -493,20 +589,212 @@ def _refuse_nonfinite(state_dict, path) -> None:
                          str(resolve(path)))
 
 
+def _model_of(payload: dict, path) -> NeuralCages:
+    """The checkpoint's model holding its weights, validated as inference needs it.
+
+    Parameters
+    ----------
+    payload : dict
+        From :func:`cagekit_learn.checkpoint.load_checkpoint`.
+    path : str or Path
+        The checkpoint file (named by the errors).
+
+    Returns
+    -------
+    NeuralCages
+        Built from ``payload["model_config"]``, in training mode.
+
+    Raises
+    ------
+    InputError
+        Naming ``path``: the stored model config does not describe the weights exactly
+        (a strict load: every name and shape), or a weight holds NaN or inf.
+    """
+    with _usable(path):
+        model = NeuralCages(ModelConfig.from_dict(payload["model_config"]))
+        try:
+            model.load_state_dict(payload["model"], strict=True)
+        except RuntimeError as exc:  # names or shapes differ: say which (the first)
+            lines = [line.strip() for line in str(exc).splitlines() if line.strip()]
+            detail = (lines[1:] or lines or ["they differ"])[0]
+            detail = detail if len(detail) <= 200 else detail[:197] + "..."
+            raise InputError(f"its weights do not match its model config ({detail})") \
+                from None
+    _refuse_nonfinite(model.state_dict(), path)
+    return model
+
+
 def load_model(path, map_location="cpu") -> tuple[NeuralCages, dict]:
     """A trained model (in eval mode) and its checkpoint from a file or run folder.
 
     Raises :class:`cagekit.InputError` naming the file for a checkpoint that cannot be
-    used, including one whose weights hold NaN or inf (a diverged run or a damaged file):
-    every prediction would be NaN.
+    used, including one whose stored model config does not match its weights or whose
+    weights hold NaN or inf (a diverged run or a damaged file): every prediction would be
+    NaN.
     """
     payload = load_checkpoint(path, map_location=map_location)
-    with _usable(path):
-        model = NeuralCages(ModelConfig.from_dict(payload["model_config"]))
-        model.load_state_dict(payload["model"])
-    _refuse_nonfinite(model.state_dict(), path)
+    model = _model_of(payload, resolve(path))
     model.eval()
     return model, payload
+
+
+#: the counters of a checkpoint and their least values (``world_size`` absent: 1)
+_COUNTERS = (("step", 0), ("skipped", 0), ("world_size", 1))
+
+
+def _resumable(payload: dict, path) -> TrainConfig:
+    """The stored config of a checkpoint that a run can continue from, or an InputError.
+
+    The checkpoint is validated as :func:`load_model` (``deform --model``) validates it,
+    its training config's model must be its ``model_config``, its settings must pass the
+    checks of a new run and its counters (``step``, ``skipped``, ``world_size``) must be
+    integers of at least 0, 0 and 1.
+
+    Parameters
+    ----------
+    payload : dict
+        From :func:`cagekit_learn.checkpoint.load_checkpoint`.
+    path : str or Path
+        The checkpoint file (named by the errors).
+
+    Returns
+    -------
+    TrainConfig
+        The stored config, as saved.
+
+    Raises
+    ------
+    InputError
+        Naming ``path``.
+    """
+    _model_of(payload, path)
+    with _usable(path):
+        stored = TrainConfig.from_dict(payload["config"])
+        _refuse_retired(payload["config"])
+        _same_model(stored.model, payload["model_config"])
+        _check(stored)
+        for name, least in _COUNTERS:
+            as_count(payload.get(name, 1) if name == "world_size" else payload[name],
+                     f"its {name}", least)
+    return stored
+
+
+def _refuse_retired(values: dict) -> None:
+    """InputError for a setting of an earlier version with a value this one lacks."""
+    for name, value in _RETIRED_SETTINGS.items():
+        if values.get(name, value) != value:
+            raise InputError(f"was trained with {name}={values[name]}, which this version "
+                             f"fixes at {value}: it cannot continue exactly")
+
+
+def _same_model(model: dict, model_config: dict) -> None:
+    """InputError unless a checkpoint's training config and model config agree."""
+    a = ModelConfig.from_dict(model).to_dict()
+    b = ModelConfig.from_dict(model_config).to_dict()
+    differ = [name for name in a if a[name] != b[name]]
+    if differ:
+        raise InputError(f"its config and its model_config disagree on "
+                         f"{', '.join(differ)}: the file is damaged")
+
+
+def resume_config(run_dir) -> TrainConfig:
+    """The config a resumed run of ``run_dir`` continues with, its checkpoint validated.
+
+    Parameters
+    ----------
+    run_dir : str or Path
+        A run folder holding ``checkpoint.pt``.
+
+    Returns
+    -------
+    TrainConfig
+        The stored one (before the settings of :data:`FROM_THE_CALLER` are replaced).
+
+    Raises
+    ------
+    InputError
+        Naming the checkpoint, for one that :func:`train` would not resume.
+    """
+    path = Path(run_dir) / CHECKPOINT_NAME
+    return _resumable(load_checkpoint(path), path)
+
+
+def fixed_source_matches(path, model: dict) -> bool:
+    """Whether the mesh at ``path`` is the fixed source a model config stores.
+
+    The same vertex count and normalisation and, when the model took vertex rows (L2
+    alignment), the same normalised positions there; the file's name does not matter.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A template mesh (``--fixed-source``).
+    model : dict
+        A :class:`~cagekit_learn.networks.ModelConfig` as a dict.
+
+    Returns
+    -------
+    bool
+        False also when the model has no fixed source.
+
+    Raises
+    ------
+    InputError
+        An unreadable or degenerate file (naming it).
+    """
+    from cagekit import io
+    from cagekit.frame import normalize
+
+    if model.get("fixed_source_points") is None:
+        return False
+    V = io.load_shape(path)[0]
+    try:
+        Vn, center, scale = normalize(V)
+    except InputError as exc:
+        raise InputError(exc.problem, path) from None
+    if (len(V) != model.get("fixed_source_vertex_count")
+            or not math.isclose(scale, model["fixed_source_scale"], rel_tol=1e-9)
+            or not np.allclose(center, model["fixed_source_center"], rtol=0,
+                               atol=1e-9 * scale)):
+        return False
+    rows = model.get("fixed_source_rows")
+    return rows is None or bool(np.allclose(Vn[np.asarray(rows, dtype=np.int64)],
+                                            model["fixed_source_points"], rtol=0,
+                                            atol=1e-6))
+
+
+def source_cage_matches(path, model: dict) -> bool:
+    """Whether the cage file at ``path`` is the fixed source cage a model config stores.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A cage mesh (``--source-cage``), in the fixed source's own frame when the model
+        has a fixed source (mapped with its stored normalisation), else in the normalised
+        source frame.
+    model : dict
+        A :class:`~cagekit_learn.networks.ModelConfig` as a dict.
+
+    Returns
+    -------
+    bool
+        False also when the model has no fixed cage.
+
+    Raises
+    ------
+    InputError
+        An unreadable file or an invalid cage (naming it).
+    """
+    if model.get("fixed_cage_v") is None:
+        return False
+    cage_v, cage_f = load_source_cage(path)
+    V = np.asarray(cage_v, dtype=np.float64)
+    if model.get("fixed_source_center") is not None:
+        V = (V - np.asarray(model["fixed_source_center"])) / model["fixed_source_scale"]
+    stored_v = np.asarray(model["fixed_cage_v"], dtype=np.float64)
+    return (V.shape == stored_v.shape
+            and np.array_equal(np.asarray(cage_f), np.asarray(model["fixed_cage_f"]))
+            and bool(np.allclose(V, stored_v, rtol=0, atol=1e-9)))
 
 
 def _optimizer(net: NeuralCages, config: TrainConfig) -> torch.optim.Adam:
@@ -522,8 +810,9 @@ def _check(config: TrainConfig) -> None:
     for name in ("epochs", "batch_size", "points", "checkpoint_every"):
         if int(getattr(config, name)) < 1:
             raise InputError(f"{name} must be at least 1, got {getattr(config, name)}")
-    if not (math.isfinite(config.lr) and config.lr > 0):
-        raise InputError(f"learning rate must be finite and > 0, got {config.lr}")
+    if not (math.isfinite(config.lr) and 0 < config.lr <= MAX_LR):
+        raise InputError(f"learning rate must be finite, > 0 and at most {MAX_LR}, got "
+                         f"{config.lr}")
     if config.align not in ("chamfer", "l2"):
         raise InputError(f"align must be chamfer or l2, got {config.align!r}")
     if config.symmetry not in (None, "x", "y", "z"):
@@ -537,10 +826,15 @@ def train(config: TrainConfig, resume: bool = False, progress: bool = True,
     Parameters
     ----------
     config : TrainConfig
-        With ``resume`` the checkpoint's own config is used, except ``epochs`` (unless
-        None), ``max_steps`` and ``max_minutes``, which may be raised to train longer.
+        With ``resume`` the checkpoint's own config is used, except the settings of
+        :data:`FROM_THE_CALLER`: ``data`` (the shapes are read from the caller's folder),
+        ``epochs``, ``max_steps``, ``max_minutes`` and ``device`` (each unless None;
+        raised to train longer). The caller refuses other settings that contradict the
+        checkpoint (``cagekit train --resume`` does, with :func:`resume_config`).
     resume : bool
-        Continue from ``run_dir/checkpoint.pt`` exactly where it stopped.
+        Continue from ``run_dir/checkpoint.pt`` exactly where it stopped; the checkpoint
+        is validated first (as :func:`load_model` validates it, and its counters), an
+        InputError naming it otherwise.
     progress : bool
         A progress bar with the loss terms on a terminal (rank 0).
     collection : ShapeCollection, optional
@@ -574,7 +868,10 @@ class Trainer:
         The run's own (the checkpoint's, when resumed).
     net : NeuralCages
     step_count, skipped : int
-        Steps taken and steps skipped for a non-finite loss or gradient.
+        Steps taken and steps skipped (a non-finite loss, gradient or update, or a loss
+        that could not be computed).
+    warned : bool
+        Whether a skipped step was warned about (once a run).
     steps_per_epoch, total_steps : int
     rank, world : int
     """
@@ -607,6 +904,7 @@ class Trainer:
             self.net.fixed_source.cpu().numpy())
         self.optimizer = _optimizer(self.net, config)
         self.step_count = self.skipped = 0
+        self.warned = False
         if payload is not None:
             self._restore(payload)
         self.model = self.net
@@ -627,32 +925,27 @@ class Trainer:
         self.trained_pairs, self.last = 0, {}
 
     def _resumed_config(self, config, payload) -> TrainConfig:
-        with _usable(self.run_dir / CHECKPOINT_NAME):
-            stored = TrainConfig.from_dict(payload["config"])
-            weights = payload["model"]
-            for name, value in _RETIRED_SETTINGS.items():  # settings of earlier versions
-                if payload["config"].get(name, value) != value:
-                    raise InputError(f"was trained with {name}={payload['config'][name]}, "
-                                     f"which this version fixes at {value}: it cannot "
-                                     "continue exactly", str(self.run_dir))
-        _refuse_nonfinite(weights, self.run_dir)
-        for name in ("epochs", "max_steps", "max_minutes", "device"):
+        """The checkpoint's config (validated) with the caller's data, budget and device."""
+        stored = _resumable(payload, self.run_dir / CHECKPOINT_NAME)
+        for name in FROM_THE_CALLER:
             if getattr(config, name) is not None:  # None: keep the stopped run's own
                 setattr(stored, name, getattr(config, name))
         stored.run_dir = config.run_dir
         return stored
 
     def _restore(self, payload) -> None:
-        with _usable(self.run_dir / CHECKPOINT_NAME):
-            self.net.load_state_dict(payload["model"])
+        """Weights, optimiser, counters and RNG from a checkpoint (:func:`_resumable`)."""
+        path = self.run_dir / CHECKPOINT_NAME
+        with _usable(path):
+            self.net.load_state_dict(payload["model"], strict=True)
             self.optimizer.load_state_dict(payload["optimizer"])
-            self.step_count, self.skipped = payload["step"], payload["skipped"]
+            self.step_count, self.skipped = int(payload["step"]), int(payload["skipped"])
             torch.set_rng_state(payload["rng"])
-            ranks = payload.get("world_size", 1)
+            ranks = int(payload.get("world_size", 1))
         if ranks != self.world:
             raise InputError(f"was trained by {ranks} process(es); resume it with the same "
                              f"number (now {self.world}) so that it continues exactly",
-                             str(self.run_dir))
+                             str(path))
 
     def pairs_of(self, epoch: int):
         """The (source, target) index pairs of an epoch, before sharding."""
@@ -661,7 +954,11 @@ class Trainer:
         return epoch_pairs(len(self.collection), epoch, self.config.seed)
 
     def step(self) -> dict:
-        """Train one batch (skipped when its loss or gradient is not finite); its terms."""
+        """Train one batch; its terms (the loss NaN when it could not be computed).
+
+        A step that cannot be taken finitely is skipped (:meth:`_skip`), the weights and
+        the optimiser's state left as they were before it.
+        """
         config = self.config
         epoch, index = divmod(self.step_count, self.steps_per_epoch)
         pairs = shard(self.pairs_of(epoch), self.rank, self.world)
@@ -672,17 +969,68 @@ class Trainer:
         source = batch["source"].to(self.device)
         target = batch["target"].to(self.device)
         self.optimizer.zero_grad(set_to_none=True)
-        loss, terms = training_loss(self.model, source, target, config)
-        loss.backward()
-        if _all_finite(loss, self.net, self.world):
-            self.optimizer.step()
-        else:
-            self.skipped += 1
-            self.optimizer.zero_grad(set_to_none=True)
+        loss, terms, why = self._loss(source, target)
+        if why is None:
+            why = self._descend(loss)
+        if why is not None:
+            self._skip(why)
         self.step_count += 1
         self.trained_pairs += len(rows) * self.world
-        self.last = {"loss": float(loss.detach()), **terms}
+        self.last = {"loss": float("nan") if loss is None else float(loss.detach()), **terms}
         return self.last
+
+    def _loss(self, source, target):
+        """The batch's loss, or why a rank could not compute it.
+
+        Overflowing values make the loss raise (:data:`_STEP_FAILURES`: cages that are not
+        finite, an eigendecomposition that fails); every rank learns whether one did.
+
+        Returns
+        -------
+        loss : scalar tensor or None
+        terms : dict of str to float
+            Empty when there is no loss.
+        why : str or None
+            None when every rank has its loss.
+        """
+        try:
+            loss, terms = training_loss(self.model, source, target, self.config)
+            why = None
+        except _STEP_FAILURES as exc:
+            loss, terms = None, {}
+            text = str(exc).strip().splitlines() or ["no message"]
+            why = f"its loss could not be computed ({type(exc).__name__}: {text[0]})"
+        if not _agree(why is None, self.device, self.world):
+            loss, terms = None, {}
+            why = why or "another process could not compute its loss"
+        return loss, terms, why
+
+    def _descend(self, loss) -> str | None:
+        """Back-propagate and update; why the step must be skipped instead, or None.
+
+        An update that leaves a weight or the optimiser's state non-finite is undone.
+        """
+        loss.backward()
+        if not _all_finite(loss, self.net, self.world):
+            return "its loss or a gradient is not finite"
+        before = _snapshot(self.net, self.optimizer)
+        self.optimizer.step()
+        if _agree(_finite(_state_tensors(self.net, self.optimizer)), self.device,
+                  self.world):
+            return None
+        _undo(self.net, self.optimizer, before)
+        return "its update left a weight or the optimiser's state not finite"
+
+    def _skip(self, why: str) -> None:
+        """Count a skipped step; the first one of the run is warned about (rank 0)."""
+        self.skipped += 1
+        self.optimizer.zero_grad(set_to_none=True)
+        if self.warned or self.rank != 0:
+            return
+        self.warned = True
+        warnings.warn(CagekitWarning(
+            f"step {self.step_count + 1} skipped: {why}; the weights stay as they were "
+            "(skipped steps are counted in log.csv and the summary)"), stacklevel=3)
 
     def checkpoint(self) -> None:
         """Write the run's state (rank 0), then wait for every rank."""

@@ -95,7 +95,9 @@ def test_nan_steps_are_skipped_and_counted(tmp_path, vases, monkeypatch):
         return value * float("nan") if calls["n"] in (2, 3) else value
 
     monkeypatch.setattr(losses, "chamfer_loss", sometimes_nan)
-    result = train(_config(tmp_path, epochs=2), progress=False, collection=vases)
+    with pytest.warns(UserWarning, match="skipped") as warned:
+        result = train(_config(tmp_path, epochs=2), progress=False, collection=vases)
+    assert len(warned) == 1  # once a run
     assert result.skipped == 2
     assert all(torch.isfinite(p).all() for p in result.model.parameters())
     payload = load_checkpoint(tmp_path / "run")
@@ -268,3 +270,124 @@ def test_resume_keeps_the_runs_own_epochs_unless_raised(tmp_path, capsys):
                 standalone_mode=False) == 0
     assert load_checkpoint(run)["step"] == 6
     capsys.readouterr()
+
+
+# ------------------------------------------------------------ non-finite steps, the lr
+
+
+@pytest.mark.parametrize("lr", ["1e30", "1.5", "0", "-1", "nan", "inf"])
+def test_train_refuses_a_learning_rate_out_of_its_bounds(tmp_path, capsys, lr):
+    from cagekit.cli import main
+
+    run = tmp_path / "run"
+    code = main(["train", *TINY_ARGS, "-o", str(run), "--max-steps", "2", f"--lr={lr}"],
+                standalone_mode=False)
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "--lr" in err, err
+    assert not run.exists()
+
+
+def test_the_learning_rate_bound_is_documented_and_the_librarys(tmp_path, capsys):
+    from cagekit.cli import main
+    from cagekit.cli.train import MAX_LR as CLI_MAX_LR
+    from cagekit_learn.train import MAX_LR
+
+    assert CLI_MAX_LR == MAX_LR == 1.0
+    assert main(["train", "--help"], standalone_mode=False) == 0
+    assert "at most 1" in " ".join(capsys.readouterr().out.split())
+    with pytest.raises(InputError, match="learning rate"):
+        train(_config(tmp_path, lr=1e30, max_steps=1), progress=False)
+
+
+def _nan_batches(monkeypatch, calls_with_nan):
+    """Make the training loop's batches hold NaN on the given calls (1-based)."""
+    from cagekit_learn import train as train_module
+
+    real, calls = train_module.make_batch, {"n": 0}
+
+    def batch(*args, **kwargs):
+        calls["n"] += 1
+        out = real(*args, **kwargs)
+        if calls["n"] in calls_with_nan:
+            out["source"] = out["source"].clone()
+            out["source"][0, :5] = float("nan")
+        return out
+
+    monkeypatch.setattr(train_module, "make_batch", batch)
+
+
+def test_a_batch_with_nan_is_a_skipped_step_not_a_crash(tmp_path, capsys, monkeypatch):
+    """NaN in a batch makes eigh (the normal term's eigenvectors) raise: the step is
+    skipped, counted and warned about once; training goes on with finite weights."""
+    from cagekit.cli import main
+
+    _nan_batches(monkeypatch, {2, 3})
+    run = tmp_path / "run"
+    code = main(["train", *TINY_ARGS, "-o", str(run), "--max-steps", "5"],
+                standalone_mode=False)
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    assert "2 skipped" in out
+    warnings = err.strip().splitlines()
+    assert len(warnings) == 1 and "skipped" in warnings[0], err
+    payload = load_checkpoint(run)
+    assert payload["step"] == 5 and payload["skipped"] == 2
+    assert all(torch.isfinite(t).all() for t in payload["model"].values())
+    with open(run / "log.csv", newline="") as handle:
+        assert [int(r["skipped"]) for r in csv.DictReader(handle)] == [0, 1, 2, 2, 2]
+
+
+def test_a_step_whose_update_is_not_finite_is_undone_exactly(tmp_path, vases, monkeypatch):
+    """An update that leaves a weight (or Adam's state) non-finite is undone: the run
+    ends as one whose second step was skipped for a NaN loss, bit for bit."""
+    real_step = torch.optim.Adam.step
+    calls = {"n": 0}
+
+    def overflowing(self, *args, **kwargs):
+        calls["n"] += 1
+        result = real_step(self, *args, **kwargs)
+        if calls["n"] == 2:
+            with torch.no_grad():
+                self.param_groups[0]["params"][0].fill_(float("inf"))
+        return result
+
+    with monkeypatch.context() as patch:
+        patch.setattr(torch.optim.Adam, "step", overflowing)
+        with pytest.warns(UserWarning, match="skipped"):
+            undone = train(_config(tmp_path / "a", max_steps=5), progress=False,
+                           collection=vases)
+    assert undone.skipped == 1
+    assert all(torch.isfinite(p).all() for p in undone.model.parameters())
+
+    real_loss, losses_seen = losses.chamfer_loss, {"n": 0}
+
+    def nan_second(P, Q):
+        losses_seen["n"] += 1
+        value = real_loss(P, Q)
+        return value * float("nan") if losses_seen["n"] == 2 else value
+
+    monkeypatch.setattr(losses, "chamfer_loss", nan_second)
+    with pytest.warns(UserWarning, match="skipped"):
+        skipped = train(_config(tmp_path / "b", max_steps=5), progress=False,
+                        collection=vases)
+    assert skipped.skipped == 1
+    a, b = load_checkpoint(tmp_path / "a" / "run"), load_checkpoint(tmp_path / "b" / "run")
+    assert states_equal(a["model"], b["model"])
+    for sa, sb in zip(a["optimizer"]["state"].values(), b["optimizer"]["state"].values()):
+        assert all(torch.equal(sa[k], sb[k]) for k in sa)
+
+
+def test_an_eigendecomposition_that_fails_is_a_skipped_step(tmp_path, vases, monkeypatch):
+    """torch's eigh raises on NaN (the normal term's covariances of overflowing points):
+    that step is skipped, not the run ended."""
+    real_eigh, calls = torch.linalg.eigh, {"n": 0}
+
+    def failing_once(M, *args, **kwargs):
+        calls["n"] += 1
+        return real_eigh(M * float("nan") if calls["n"] == 2 else M, *args, **kwargs)
+
+    monkeypatch.setattr(torch.linalg, "eigh", failing_once)
+    with pytest.warns(UserWarning, match="LinAlgError"):
+        result = train(_config(tmp_path, max_steps=4), progress=False, collection=vases)
+    assert result.step == 4 and result.skipped == 1
+    assert all(torch.isfinite(p).all() for p in result.model.parameters())

@@ -16,6 +16,18 @@ from cagekit.cli.common import (
 )
 from cagekit.errors import InputError
 
+#: the largest ``--lr``: :data:`cagekit_learn.train.MAX_LR` (a test checks that they are
+#: equal; not imported, so that starting the command line imports no torch)
+MAX_LR = 1.0
+#: the options a resumed run takes from its checkpoint, each with the setting it gives
+#: (``model.NAME``: the model config's); given again, they must repeat the stored value
+_STORED_OPTIONS = {
+    "batch_size": "batch_size", "lr": "lr", "points": "points", "seed": "seed",
+    "checkpoint_every": "checkpoint_every", "symmetry": "symmetry", "align": "align",
+    "no_augment": "augment", "bottleneck": "model.bottleneck", "coords": "model.coords",
+    "nc": "model.nc", "no_box_align": "model.box_align",
+}
+
 
 @click.command(short_help="Train the learned cages (N_c, N_d) on a folder of meshes.")
 @click.argument("data", metavar="DATA_DIR")
@@ -24,14 +36,16 @@ from cagekit.errors import InputError
 @click.option("--epochs", default=100, show_default=True, type=click.IntRange(min=1))
 @click.option("--batch-size", default=8, show_default=True, type=click.IntRange(min=1),
               help="Pairs per step (per process under torchrun).")
-@click.option("--lr", default=1e-3, show_default=True, type=FiniteFloatRange(min=0,
-              min_open=True), help="Adam's learning rate (N_c at a tenth of it).")
+@click.option("--lr", default=1e-3, show_default=True,
+              type=FiniteFloatRange(min=0, min_open=True, max=MAX_LR),
+              help="Adam's learning rate, > 0 and at most 1 (N_c at a tenth of it).")
 @click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), default="auto",
               show_default=True)
 @click.option("--resume", is_flag=True,
               help="Continue the run in --output exactly where it stopped, with the "
-                   "same number of processes (its own settings; --epochs, --max-steps, "
-                   "--minutes and --device given again replace them).")
+                   "same number of processes, on the shapes of DATA_DIR. Its own "
+                   "settings: --epochs, --max-steps, --minutes and --device given again "
+                   "replace them; any other option given again must repeat its value.")
 @click.option("--points", default=1024, show_default=True,
               type=click.IntRange(min=16, max=100_000),
               help="Samples per shape.")
@@ -111,10 +125,9 @@ def train(ctx, data, run_dir, epochs, batch_size, lr, device, resume, points, bo
         raise InputError("holds a checkpoint already: --resume to continue it, or choose "
                          "another folder", run_dir)
     if resume:  # what was not given again stays as the stopped run had it
-        default = click.core.ParameterSource.DEFAULT
-        if ctx.get_parameter_source("epochs") == default:
+        if not _given(ctx, "epochs"):
             epochs = None
-        if ctx.get_parameter_source("device") == default:
+        if not _given(ctx, "device"):
             device = None
     config = TrainConfig(
         data=data, run_dir=run_dir, epochs=epochs, batch_size=batch_size, lr=lr,
@@ -122,6 +135,8 @@ def train(ctx, data, run_dir, epochs, batch_size, lr, device, resume, points, bo
         symmetry=None if symmetry == "none" else symmetry, align=align,
         augment=not no_augment, max_steps=max_steps, max_minutes=minutes,
         model=model.to_dict(), fixed_source=fixed_source)
+    if resume:
+        _refuse_contradictions(ctx, config, source_cage)
     from cagekit.files import output_folder
 
     with output_folder(run_dir):  # a run that fails before writing leaves no empty folder
@@ -139,3 +154,68 @@ def train(ctx, data, run_dir, epochs, batch_size, lr, device, resume, points, bo
                    f"{result.skipped} skipped); last loss {loss:.4g}; wrote "
                    f"{os.path.join(run_dir, 'checkpoint.pt')}")
 
+
+def _given(ctx: click.Context, name: str) -> bool:
+    """Whether option ``name`` was given (on the command line or in the environment)."""
+    source = ctx.get_parameter_source(name)
+    return source not in (click.core.ParameterSource.DEFAULT,
+                          click.core.ParameterSource.DEFAULT_MAP)
+
+
+def _setting(config, key: str):
+    """A setting of a TrainConfig: a field, or ``model.NAME`` of its model config."""
+    if key.startswith("model."):
+        from cagekit_learn.networks import ModelConfig
+
+        return getattr(ModelConfig.from_dict(config.model), key.removeprefix("model."))
+    return getattr(config, key)
+
+
+def _shown(value) -> str:
+    """A setting as its option writes it (``none`` for no symmetry)."""
+    return "none" if value is None else str(value)
+
+
+def _refuse_contradictions(ctx: click.Context, config, source_cage) -> None:
+    """InputError (naming the checkpoint) for an option given with ``--resume`` that
+    contradicts the checkpoint in ``config.run_dir``.
+
+    Parameters
+    ----------
+    ctx : click.Context
+        The command's, which says which options were given.
+    config : cagekit_learn.train.TrainConfig
+        The config the options make.
+    source_cage : str or None
+        ``--source-cage``.
+
+    Raises
+    ------
+    InputError
+        One line: the option, its value and the checkpoint's; or a checkpoint that cannot
+        be resumed (:func:`cagekit_learn.train.resume_config`).
+    """
+    from cagekit_learn.checkpoint import CHECKPOINT_NAME
+    from cagekit_learn.train import fixed_source_matches, resume_config, source_cage_matches
+
+    path = os.path.join(config.run_dir, CHECKPOINT_NAME)
+    stored = resume_config(config.run_dir)
+    params = {param.name: param for param in ctx.command.params}
+    for name, key in _STORED_OPTIONS.items():
+        given, kept = _setting(config, key), _setting(stored, key)
+        if not _given(ctx, name) or given == kept:
+            continue
+        option = params[name].opts[0]
+        if params[name].is_flag:
+            raise InputError(f"{option} contradicts the checkpoint's "
+                             f"{key.removeprefix('model.')}={kept}", path)
+        raise InputError(f"{option} {ctx.params[name]} contradicts the checkpoint's "
+                         f"{_shown(kept)}", path)
+    if config.fixed_source is not None and not fixed_source_matches(config.fixed_source,
+                                                                    stored.model):
+        raise InputError(f"--fixed-source {config.fixed_source} contradicts the "
+                         f"checkpoint's {_shown(stored.fixed_source)}", path)
+    if source_cage is not None and not source_cage_matches(source_cage, stored.model):
+        kept = "none" if stored.model.get("fixed_cage_v") is None else "fixed cage"
+        raise InputError(f"--source-cage {source_cage} contradicts the checkpoint's {kept}",
+                         path)
