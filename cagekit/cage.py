@@ -4,7 +4,8 @@ A cage is a closed, 2-manifold triangle mesh with consistently oriented, outward
 (positive signed volume), and its vertex order is its identity: nothing here reorders,
 merges or drops cage vertices. :func:`check_cage` is the gate every cage passes before
 coordinates are computed. It raises :class:`cagekit.CageError` for an open or non-manifold
-edge, inconsistent orientation, a face that repeats a vertex or has zero area (twice its
+edge, a non-manifold vertex (parts of the cage touching at one vertex only), inconsistent
+orientation, a face that repeats a vertex or has zero area (twice its
 area below ``1e-24 D**2``, ``D`` the bounding-box diagonal), an index out of range,
 non-finite coordinates and, by default, faces that cross one another. Slivers are fine, a
 consistently inward cage is flipped rather than refused, several closed components are each
@@ -14,15 +15,16 @@ get zero weight. See docs/architecture.md.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
-from cagekit.errors import CageError
+from cagekit.errors import CageError, CagekitWarning, InputError
 
 __all__ = ["CageTopology", "cage_topology", "unique_edges", "face_components",
-           "vertex_components", "check_cage",
-           "self_intersecting_faces", "signed_volume", "cage_encloses", "winding_numbers",
+           "vertex_components", "check_cage", "self_intersecting_faces",
+           "warn_self_intersecting", "signed_volume", "cage_encloses", "winding_numbers",
            "distance_in_diagonals"]
 
 
@@ -194,9 +196,9 @@ def check_cage(cage_v, cage_f, name: str | None = None, *,
     ------
     CageError
         Non-finite vertices, bad face array, an index out of range, a face repeating a
-        vertex or of zero area, a boundary (open cage), a non-manifold edge, inconsistent
-        orientation, a component of zero volume, or (``intersections``) faces that cross
-        one another.
+        vertex or of zero area, a boundary (open cage), a non-manifold edge or vertex,
+        inconsistent orientation, a component of zero volume, or (``intersections``)
+        faces that cross one another.
 
     Examples
     --------
@@ -242,6 +244,7 @@ def check_cage(cage_v, cage_f, name: str | None = None, *,
     if np.any(uses > 2):
         a, b = topo.edges[np.argmax(uses > 2)]
         raise CageError(f"cage is not 2-manifold: edge ({a}, {b}) has {uses.max()} faces", name)
+    _check_manifold_vertices(f, name)
     signed_uses = np.zeros(len(topo.edges))
     np.add.at(signed_uses, topo.face_edges.ravel(), topo.face_edge_signs.ravel())
     if np.any(signed_uses != 0):
@@ -265,6 +268,35 @@ def check_cage(cage_v, cage_f, name: str | None = None, *,
                             "cross another face); a cage must be free of self-intersection "
                             "(cagekit fit-cage builds one that is)", name)
     return out
+
+
+def _check_manifold_vertices(faces, name):
+    """Refuse a vertex whose faces form more than one fan (parts of the cage that touch
+    there only), by libigl's ``is_vertex_manifold``; vertices on no face are not judged.
+
+    Parameters
+    ----------
+    faces : (m, 3) int64
+        Faces whose edges are already known to be manifold.
+    name : str or None
+        Put in front of the error message.
+
+    Raises
+    ------
+    CageError
+        Naming the first non-manifold vertex and how many there are.
+    """
+    import igl
+
+    manifold = np.asarray(igl.is_vertex_manifold(np.ascontiguousarray(faces)), dtype=bool)
+    used = np.zeros(len(manifold), dtype=bool)
+    used[faces.ravel()] = True
+    bad = np.flatnonzero(used & ~manifold)
+    if len(bad):
+        more = f", and {len(bad) - 1} more" if len(bad) > 1 else ""
+        raise CageError(f"cage is not 2-manifold: vertex {bad[0]} is non-manifold (parts of "
+                        f"the cage touch only there{more}); a cage must be a closed "
+                        "2-manifold surface", name)
 
 
 def self_intersecting_faces(cage_v, cage_f) -> np.ndarray:
@@ -303,6 +335,41 @@ def self_intersecting_faces(cage_v, cage_f) -> np.ndarray:
     ms.add_mesh(pymeshlab.Mesh(v, f))
     ms.compute_selection_by_self_intersections_per_face()
     return np.asarray(ms.current_mesh().face_selection_array(), dtype=bool)
+
+
+def warn_self_intersecting(cage_v, cage_f, name: str = "the cage") -> int:
+    """Warn when a (moved) cage intersects itself: the shape it carries folds over.
+
+    A deformed cage is not refused for it (the coordinates are still defined; the user
+    moved it so), but the motion folds the space between the crossing sheets. Uses the
+    exact test of :func:`check_cage`, :func:`self_intersecting_faces`.
+
+    Parameters
+    ----------
+    cage_v : (k, 3) array_like of float
+    cage_f : (m, 3) array_like of int
+    name : str, default "the cage"
+        How the message names the cage (its file name on the command line).
+
+    Returns
+    -------
+    int
+        The number of faces that cross another face; when it is not 0 one
+        :class:`~cagekit.errors.CagekitWarning` line was issued.
+
+    Examples
+    --------
+    >>> import cagekit.shapes as shapes
+    >>> v, f = shapes.box_cage()
+    >>> warn_self_intersecting(v, f)
+    0
+    """
+    crossing = int(self_intersecting_faces(cage_v, cage_f).sum())
+    if crossing:
+        warnings.warn(CagekitWarning(
+            f"{name}: the cage intersects itself ({crossing} of its {len(cage_f)} faces "
+            "cross another face); the shape it carries folds over"), stacklevel=2)
+    return crossing
 
 
 def winding_numbers(points, cage_v, cage_f) -> np.ndarray:
@@ -345,6 +412,11 @@ def cage_encloses(points, cage_v, cage_f, threshold: float = 0.5) -> bool:
     -------
     bool
 
+    Raises
+    ------
+    InputError
+        A point or cage vertex is NaN or infinite (naming the first).
+
     Examples
     --------
     >>> import cagekit.shapes as shapes
@@ -352,8 +424,21 @@ def cage_encloses(points, cage_v, cage_f, threshold: float = 0.5) -> bool:
     >>> cage_encloses([[0.0, 0.0, 0.0]], v, f), cage_encloses([[3.0, 0.0, 0.0]], v, f)
     (True, False)
     """
+    points = _finite_rows(points, "point")
+    cage_v = _finite_rows(cage_v, "cage vertex")
     wn = winding_numbers(points, cage_v, cage_f)
     return bool(np.all(wn >= threshold - 1e-9))
+
+
+def _finite_rows(rows, what: str) -> np.ndarray:
+    """``rows`` as an (n, 3) float64 array, or :class:`InputError` naming the first row
+    that is not finite (``"{what} {i} is not finite: [...]"``)."""
+    a = np.asarray(rows, dtype=np.float64).reshape(-1, 3)
+    bad = ~np.isfinite(a).all(axis=1)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise InputError(f"{what} {i} is not finite: {a[i].tolist()}")
+    return a
 
 
 def distance_in_diagonals(points, cage_v) -> np.ndarray:

@@ -27,12 +27,50 @@ from cagekit.cage import self_intersecting_faces
 from cagekit.errors import CageFitError, InputError
 from cagekit.geometry import as_shape
 
-__all__ = ["fit_cage", "cage_report", "template_cage", "wrap_input", "CageFitError", "METHODS"]
+__all__ = ["fit_cage", "cage_report", "template_cage", "wrap_input", "check_face_budget",
+           "CageFitError", "METHODS", "MIN_FACES", "MAX_FACES"]
 
 METHODS = ("wrap", "template")
 
+#: fewest faces a cage can have (a tetrahedron)
+MIN_FACES = 4
+#: largest face budget :func:`fit_cage` takes (``cagekit fit-cage --faces`` shares it): the
+#: wrap is already finer than this for any budget above about 2,000 faces (its alpha stops
+#: at 0.02 of the diagonal), and binding cost grows with the cage's faces
+MAX_FACES = 100_000
+
 #: faces of :func:`template_cage` (the paper's icosphere)
 TEMPLATE_FACES = 80
+
+
+def check_face_budget(faces) -> int:
+    """A cage face budget as an int, or a one-line :class:`InputError`.
+
+    Parameters
+    ----------
+    faces : int
+        A Python or NumPy integer (not a bool, not a float) from :data:`MIN_FACES` to
+        :data:`MAX_FACES`.
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    InputError
+        Not an integer, or out of range.
+
+    Examples
+    --------
+    >>> check_face_budget(np.int64(200))
+    200
+    """
+    if (isinstance(faces, bool) or not isinstance(faces, (int, np.integer))
+            or not MIN_FACES <= faces <= MAX_FACES):
+        raise InputError(f"faces must be an integer from {MIN_FACES} to {MAX_FACES:,} (a cage "
+                         f"has at least {MIN_FACES} faces), got {faces!r}")
+    return int(faces)
 
 
 def template_cage():
@@ -542,7 +580,8 @@ def cage_report(shape_v, shape_f, cage_v, cage_f, faces: int | None = None,
     cage_v : (k, 3) array_like of float
     cage_f : (c, 3) array_like of int
     faces : int, optional
-        The requested face count (default: the cage's own).
+        The requested face count, as :func:`check_face_budget` takes it (default: the
+        cage's own).
     components : int, default 1
         Allowed number of cage components.
     samples : int, default 20000
@@ -552,8 +591,8 @@ def cage_report(shape_v, shape_f, cage_v, cage_f, faces: int | None = None,
     Raises
     ------
     InputError
-        A bad shape (as :func:`fit_cage`) or a cage with fewer than 4 vertices or faces,
-        NaN coordinates or face indices out of range.
+        A bad shape (as :func:`fit_cage`), a bad ``faces``, or a cage with fewer than 4
+        vertices or faces, NaN coordinates or face indices out of range.
 
     Returns
     -------
@@ -565,6 +604,8 @@ def cage_report(shape_v, shape_f, cage_v, cage_f, faces: int | None = None,
         says which) and ``max_distance`` (largest distance from the cage surface to the
         shape, over the shape's bounding-box diagonal).
     """
+    if faces is not None:
+        faces = check_face_budget(faces)
     v, f, frame = _as_shape(shape_v, shape_f)
     cv = np.asarray(cage_v, dtype=np.float64)
     cf = np.asarray(cage_f, dtype=np.int64)
@@ -622,7 +663,8 @@ def fit_cage(shape_v, shape_f=None, faces: int = 200, method: str = "wrap", *,
         Its faces; None or empty for a point cloud. Open, multi-component, non-manifold,
         self-intersecting input and duplicate or degenerate faces are all accepted.
     faces : int, default 200
-        Largest number of cage faces. The template always has 80: fewer is refused.
+        Largest number of cage faces: an integer from :data:`MIN_FACES` (4) to
+        :data:`MAX_FACES` (100,000). The template always has 80: fewer is refused.
     method : {"wrap", "template"}, default "wrap"
     components : int, default 1
         Largest number of cage components (``wrap``).
@@ -653,8 +695,9 @@ def fit_cage(shape_v, shape_f=None, faces: int = 200, method: str = "wrap", *,
     Raises
     ------
     InputError
-        Empty shape, NaN, a single point, an unknown method, ``faces < 4``, or
-        ``faces < 80`` with the template.
+        Empty shape, NaN, a single point, an unknown method, ``faces`` not an integer
+        from 4 to 100,000 (:func:`check_face_budget`), or ``faces < 80`` with the
+        template.
     CageFitError
         No cage meeting every guarantee was found.
 
@@ -668,9 +711,8 @@ def fit_cage(shape_v, shape_f=None, faces: int = 200, method: str = "wrap", *,
     """
     if method not in METHODS:
         raise InputError(f"unknown cage method {method!r}; available: {', '.join(METHODS)}")
-    if int(faces) < 4:
-        raise InputError(f"a cage needs at least 4 faces, {faces} requested")
-    if method == "template" and int(faces) < TEMPLATE_FACES:
+    faces = check_face_budget(faces)
+    if method == "template" and faces < TEMPLATE_FACES:
         raise InputError(f"the template cage has {TEMPLATE_FACES} faces, more than the "
                          f"{faces} asked for; ask for {TEMPLATE_FACES} or more, or use "
                          "method wrap")
@@ -681,7 +723,7 @@ def fit_cage(shape_v, shape_f=None, faces: int = 200, method: str = "wrap", *,
         # a wider margin when input edges cross the cage between samples
         for grow in (1, 4, 16):
             cvn, cf = _fit_template(vn, pts, margin * grow)
-            report = _checks(cvn, cf, vn, f, pts, int(faces), 1)
+            report = _checks(cvn, cf, vn, f, pts, faces, 1)
             if all(report.values()):
                 break
         else:
@@ -689,8 +731,8 @@ def fit_cage(shape_v, shape_f=None, faces: int = 200, method: str = "wrap", *,
             raise CageFitError(f"the template cage fails: {failing}")
     else:
         if alphas is None:
-            alphas = default_alphas(int(faces))
-        cvn, cf, report = _fit_wrap(vn, f, int(faces), pts, margin, offsets, alphas,
+            alphas = default_alphas(faces)
+        cvn, cf, report = _fit_wrap(vn, f, faces, pts, margin, offsets, alphas,
                                     max_repairs, components)
     cage_v = frame.to_world(cvn)
     if return_report:

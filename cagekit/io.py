@@ -10,10 +10,11 @@ of first appearance). OBJ, OFF and PLY are therefore parsed here, as trimesh doe
 vertex identity on common files; STL and GLB/GLTF use ``trimesh.load(..., process=False,
 maintain_order=True)``, scenes flattened by world transform in scene-graph order (only point
 clouds: a point cloud). Polygons are fan-triangulated in file order; faces of fewer than 3
-vertices are dropped with one :class:`~cagekit.errors.MeshFileWarning` per file; degenerate
-triangles are kept. OBJ reads ``v`` (first three columns) and ``f`` only: 1-based, negative
-indices count back from the latest vertex, index 0 is an error, ``#`` comments on any line,
-backslash continuations. Text clouds (``.xyz``, ``.pts``, ``.txt``): one point a line,
+vertices, and OBJ line elements (``l`` records), are dropped with one
+:class:`~cagekit.errors.MeshFileWarning` per file that counts them; degenerate triangles are
+kept. OBJ reads ``v`` (first three columns) and ``f`` (and counts ``l``) only: 1-based,
+negative indices count back from the latest vertex, index 0 is an error, ``#`` comments on
+any line, backslash continuations. Text clouds (``.xyz``, ``.pts``, ``.txt``): one point a line,
 whitespace or commas, first three columns; blank, ``#`` and ``//`` lines skipped; a leading
 point count (PTS) must match. Writing is atomic (:func:`cagekit.files.atomic_output`) and
 exact where the format allows: ``%.17g`` text, binary little-endian PLY (float64, int32
@@ -188,10 +189,13 @@ def _checked(V, F, path):
     return V, F
 
 
-def _triangulate(flat, sizes, n_vertices, path, lines=None, base=0) -> np.ndarray:
+def _triangulate(flat, sizes, n_vertices, path, lines=None, base=0,
+                 line_elements=None) -> np.ndarray:
     """Fan-triangulate polygons given as concatenated indices ``flat`` and ``sizes``.
 
     Errors name ``lines[i]`` (else the face number) and show indices counted from ``base``.
+    Polygons of fewer than 3 vertices are dropped; they and ``line_elements`` (``(count,
+    first line)`` of the file's dropped line elements, or None) are counted in one warning.
     """
     flat = np.asarray(flat, dtype=np.int64).reshape(-1)
     sizes = np.asarray(sizes, dtype=np.int64)
@@ -201,15 +205,19 @@ def _triangulate(flat, sizes, n_vertices, path, lines=None, base=0) -> np.ndarra
     else:
         where = lambda i: f"line {lines[i]}"  # noqa: E731
     short = sizes < 3
+    dropped = []
     if short.any():  # lines or points written as faces: dropped, with one warning
         first = int(np.argmax(short))
-        warnings.warn(MeshFileWarning(
-            f"{os.fspath(path)}: dropped {int(short.sum()):,} face(s) with fewer than 3 "
-            f"vertices (the first at {where(first)}); kept {int((~short).sum()):,}"),
-            stacklevel=5)
+        dropped.append(f"{int(short.sum()):,} face(s) with fewer than 3 vertices "
+                       f"(the first at {where(first)})")
         flat = flat[np.repeat(~short, sizes)]
         lines = [line for line, bad in zip(lines, short) if not bad]
         sizes = sizes[~short]
+    if line_elements is not None:
+        count, first_line = line_elements
+        dropped.append(f"{count:,} line element(s) (the first at line {first_line})")
+    if dropped:
+        _warn_dropped(path, dropped, kept=len(sizes))
     if len(flat) and (flat.min() < 0 or flat.max() >= n_vertices):
         polygon = np.repeat(np.arange(len(sizes)), sizes)
         j = int(np.argmax((flat < 0) | (flat >= n_vertices)))
@@ -225,6 +233,14 @@ def _triangulate(flat, sizes, n_vertices, path, lines=None, base=0) -> np.ndarra
     start = (np.cumsum(sizes) - sizes)[polygon]
     corner = np.arange(triangles.sum()) - np.repeat(np.cumsum(triangles) - triangles, triangles)
     return np.column_stack([flat[start], flat[start + corner + 1], flat[start + corner + 2]])
+
+
+def _warn_dropped(path, dropped, kept):
+    """One :class:`MeshFileWarning` for a file: what was ``dropped`` (phrases with counts),
+    and how many faces were ``kept``."""
+    warnings.warn(MeshFileWarning(
+        f"{os.fspath(path)}: dropped {' and '.join(dropped)}; kept {kept:,} face(s)"),
+        stacklevel=6)  # _warn_dropped, _triangulate, the reader, _load, load_*, its caller
 
 
 def _numbers(rows, lines, path, what="coordinate") -> np.ndarray:
@@ -253,8 +269,27 @@ def _int_table(rows):
 
 
 def _read_obj(path):
+    rows, v_lines, faces, f_lines, f_seen, l_lines = _obj_records(path)
+    V = _numbers(rows, v_lines, path)
+    line_elements = (len(l_lines), l_lines[0]) if l_lines else None
+    table = _int_table(faces)
+    if table is not None and table.shape[1] == 3 and (table > 0).all():  # fast path
+        return V, _triangulate(table - 1, np.full(len(table), 3), len(V), path, f_lines, 1,
+                               line_elements)
+    flat = _obj_face_indices(faces, f_lines, f_seen, path)
+    sizes = [len(face) for face in faces]
+    return V, _triangulate(flat, sizes, len(V), path, f_lines, 1, line_elements)
+
+
+def _obj_records(path):
+    """The ``v``, ``f`` and ``l`` records of an OBJ file, with their line numbers.
+
+    Returns ``(rows, v_lines, faces, f_lines, f_seen, l_lines)``: the vertices' first three
+    tokens, the faces' tokens, the vertex count before each face (relative indices count
+    back from there) and the line numbers of the line elements (which are only counted).
+    """
     text = read_text(path, MeshFileError)
-    rows, v_lines, faces, f_lines, f_seen = [], [], [], [], []
+    rows, v_lines, faces, f_lines, f_seen, l_lines = [], [], [], [], [], []
     pending = ""
     for number, line in enumerate(text.splitlines(), 1):
         line = line.split("#", 1)[0].rstrip()  # a comment runs to the end of the line
@@ -263,21 +298,25 @@ def _read_obj(path):
             continue
         parts = (pending + line).split()
         pending = ""
-        if not parts or parts[0] not in ("v", "f"):
+        if not parts:
             continue
         if parts[0] == "v":
             if len(parts) < 4:
                 raise MeshFileError(f"line {number}: a vertex needs 3 coordinates", path)
             rows.append(parts[1:4])
             v_lines.append(number)
-        else:
+        elif parts[0] == "f":
             faces.append(parts[1:])
             f_lines.append(number)
-            f_seen.append(len(rows))  # relative indices count back from here
-    V = _numbers(rows, v_lines, path)
-    table = _int_table(faces)
-    if table is not None and table.shape[1] == 3 and (table > 0).all():  # fast path
-        return V, _triangulate(table - 1, np.full(len(table), 3), len(V), path, f_lines, 1)
+            f_seen.append(len(rows))
+        elif parts[0] == "l":
+            l_lines.append(number)
+    return rows, v_lines, faces, f_lines, f_seen, l_lines
+
+
+def _obj_face_indices(faces, f_lines, f_seen, path):
+    """The 0-based vertex indices of OBJ faces, concatenated (``v/vt/vn`` and relative
+    indices resolved); a bad index raises naming its line."""
     flat = []
     for number, face, seen in zip(f_lines, faces, f_seen):
         for token in face:
@@ -295,8 +334,7 @@ def _read_obj(path):
                     path,
                 )
             flat.append(index - 1 if index > 0 else index + seen)
-    sizes = [len(face) for face in faces]
-    return V, _triangulate(flat, sizes, len(V), path, f_lines, base=1)
+    return flat
 
 
 def _read_off(path):

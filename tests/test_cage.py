@@ -115,3 +115,51 @@ def test_distance_in_diagonals_does_not_overflow():
     v, _ = box_cage(1)  # diagonal 2 sqrt 3
     r = distance_in_diagonals([[1e300, 1e300, 0.0], [0.0, 0.0, 0.0]], v)
     assert r[0] == pytest.approx(np.sqrt(2) * 1e300 / (2 * np.sqrt(3))) and r[1] == 0.0
+
+
+def _octahedron(centre=(0.0, 0.0, 0.0)):
+    v = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
+    f = np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4],
+                  [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]])
+    return v + centre, f
+
+
+def _glued_octahedra():
+    """Two octahedra touching at one vertex (index 3, at the origin): every edge has two
+    faces, consistently oriented, and nothing crosses, but vertex 3 is non-manifold."""
+    a, f = _octahedron((0.0, 1.0, 0.0))  # its vertex 3 is (0, 0, 0)
+    b, _ = _octahedron((0.0, -1.0, 0.0))  # its vertex 2 is (0, 0, 0)
+    v = np.vstack([a, np.delete(b, 2, axis=0)])
+    to_glued = np.array([6, 7, 3, 8, 9, 10])  # b's vertices in v (its vertex 2 is a's 3)
+    return v, np.vstack([f, to_glued[f]])
+
+
+def test_a_cage_with_a_non_manifold_vertex_is_refused():
+    from cagekit import bind
+
+    v, f = _glued_octahedra()
+    assert np.array_equal(check_cage(*_octahedron()), _octahedron()[1])  # each part is fine
+    with pytest.raises(CageError, match=r"^glued\.obj: .*vertex 3 is non-manifold"):
+        check_cage(v, f, name="glued.obj")
+    with pytest.raises(CageError, match="vertex 3 is non-manifold"):
+        bind(np.array([[0.0, 1.0, 0.0]]), v, f)
+
+
+def test_unreferenced_cage_vertices_are_still_accepted():
+    v, f = box_cage(1)
+    extra = np.vstack([v[:3], [[9.0, 9.0, 9.0]], v[3:]])  # vertex 3 is on no face
+    faces = np.where(f >= 3, f + 1, f)
+    assert np.array_equal(check_cage(extra, faces), faces)
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_cage_encloses_refuses_non_finite_points(bad):
+    from cagekit import InputError
+
+    v, f = box_cage(1)
+    with pytest.raises(InputError, match=r"point 1 is not finite"):
+        cage_encloses([[0.0, 0.0, 0.0], [0.0, bad, 0.0]], v, f)
+    moved = v.copy()
+    moved[5, 2] = bad
+    with pytest.raises(InputError, match=r"cage vertex 5 is not finite"):
+        cage_encloses([[0.0, 0.0, 0.0]], moved, f)

@@ -486,3 +486,68 @@ def test_debug_shows_traceback(bad_files):
         assert result.returncode == 2
         assert "Traceback" in result.stderr
         assert result.stderr.strip().splitlines()[-1].count("nan.obj") == 1
+
+
+def test_face_options_share_the_library_bound():
+    from cagekit.cli.deform import deform
+    from cagekit.cli.fit_cage import fit_cage
+    from cagekit.fitting import MAX_FACES, MIN_FACES
+
+    for command in (fit_cage, deform):
+        (option,) = [p for p in command.params if p.name == "faces"]
+        assert (option.type.min, option.type.max) == (MIN_FACES, MAX_FACES)
+
+
+@pytest.mark.parametrize("value", ["100001", "1000000000", "200.5"])
+def test_fit_cage_face_budget_out_of_range_is_one_line(bad_files, value):
+    result = cagekit("fit-cage", "shape.obj", "-o", "x.obj", "--faces", value, cwd=bad_files)
+    assert_bad_input(result, "--faces", value)
+    assert not (bad_files / "x.obj").exists()
+
+
+def _box_files(folder):
+    """A cloud of points inside the box cage [-1, 1]^3, written beside the cage."""
+    from cagekit.io import save_mesh, save_points
+    from cagekit.shapes import box_cage
+
+    v, f = box_cage(1)
+    save_points(folder / "points.xyz", 0.5 * v)
+    save_mesh(folder / "box.obj", v, f)
+    return v, f
+
+
+def test_apply_refuses_a_cage_with_a_non_manifold_vertex(tmp_path):
+    import trimesh
+
+    from cagekit.io import save_mesh
+
+    v, f = _box_files(tmp_path)
+    both = trimesh.Trimesh(np.vstack([v, v + 2.0]), np.vstack([f, f + len(v)]))  # merged
+    corner = int(np.flatnonzero((both.vertices == 1.0).all(axis=1))[0])  # shared by both
+    save_mesh(tmp_path / "glued.obj", both.vertices, both.faces)
+    result = cagekit("apply", "points.xyz", "glued.obj", "glued.obj", "-o", "out.xyz",
+                     cwd=tmp_path)
+    assert_bad_input(result, "glued.obj", f"vertex {corner} is non-manifold")
+    assert not (tmp_path / "out.xyz").exists()
+
+
+def test_apply_warns_once_when_the_deformed_cage_intersects_itself(tmp_path):
+    from cagekit.io import save_mesh
+
+    v, f = _box_files(tmp_path)
+    folded = v.copy()
+    folded[0] = -1.5 * folded[0]  # a corner pushed through the opposite faces
+    save_mesh(tmp_path / "folded.obj", folded, f)
+    result = cagekit("apply", "points.xyz", "box.obj", "folded.obj", "-o", "out.xyz",
+                     cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    assert "warning" in lines[0] and "folded.obj" in lines[0]
+    assert "intersects itself" in lines[0] and "of its 12 faces" in lines[0]
+    assert (tmp_path / "out.xyz").exists()
+    # the rest cage moved rigidly is fine: no warning
+    save_mesh(tmp_path / "moved.obj", v + 5.0, f)
+    result = cagekit("apply", "points.xyz", "box.obj", "moved.obj", "-o", "moved.xyz",
+                     cwd=tmp_path)
+    assert result.returncode == 0 and result.stderr == "", result.stderr

@@ -234,3 +234,24 @@ def test_repair_leaves_every_sample_margin_inside():
     repaired = _repair(cv, cf, samples, margin=1e-3, rounds=30)
     assert repaired is not None
     assert _signed_distance(samples, repaired, cf)[0].max() <= -1e-3
+
+
+@pytest.mark.parametrize("faces", [10**9, 100_001, 200.5, 200.0, True, "200", 3, None])
+def test_face_budget_is_an_int_within_the_documented_range(faces):
+    from cagekit.shapes import box_cage
+
+    v, f = box_cage(2)
+    message = r"faces must be an integer from 4 to 100,000 .*got " + repr(faces)
+    with pytest.raises(InputError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        fit_cage(v, f, faces=faces)
+    if faces is not None:  # None is cage_report's default: the cage's own count
+        with pytest.raises(InputError, match="faces must be an integer"):
+            cage_report(v, f, v, f, faces=faces)
+
+
+def test_face_budget_takes_numpy_integers_and_the_bounds():
+    from cagekit.fitting import MAX_FACES, MIN_FACES, check_face_budget
+
+    assert (MIN_FACES, MAX_FACES) == (4, 100_000)
+    assert check_face_budget(np.int64(200)) == 200 and type(check_face_budget(np.int64(200))) is int
+    assert check_face_budget(4) == 4 and check_face_budget(100_000) == 100_000

@@ -136,7 +136,8 @@ def test_obj_with_materials_texture_and_normals_keeps_vertices(tmp_path):
         "g part\nusemtl red\nf 1/1/1 2/2/1 3/3/1\nusemtl blue\nf 2/2/1 4/4/1 3/4/1\n"
         "usemtl red\nf 4//1 2//1 1//1\nl 1 2\np 5\n",
     )
-    V, F = cio.load_mesh(path)
+    with pytest.warns(MeshFileWarning, match=r"1 line element\(s\) \(the first at line 19\)"):
+        V, F = cio.load_mesh(path)
     assert len(V) == 5 and V[4].tolist() == [7, 7, 7]
     assert F.tolist() == [[0, 1, 2], [1, 3, 2], [3, 1, 0]]
 
@@ -347,7 +348,8 @@ BAD_FILES = [
 
 SHORT_FACES = [
     ("lines.obj", OBJ_HEAD + "v 1 1 0\nf 1 2 3\nf 1 2\nl 2 3\nf 3\nf 2 4 3\nf 4 1\n",
-     "dropped 3 face(s) with fewer than 3 vertices (the first at line 6); kept 2"),
+     "dropped 3 face(s) with fewer than 3 vertices (the first at line 6) and 1 line "
+     "element(s) (the first at line 7); kept 2 face(s)"),
     ("lines.off", "OFF\n4 4 0\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n2 0 1\n"
      "3 1 3 2\n1 3\n", "dropped 2 face(s) with fewer than 3 vertices (the first at line 8)"),
     ("lines.ply", PLY_HEAD.replace("element face 1", "element face 2") + "0 0 0\n1 0 0\n"
@@ -377,6 +379,41 @@ def test_a_file_whose_faces_are_all_lines_is_a_point_cloud_or_no_mesh(tmp_path):
     assert len(V) == 3 and F.shape == (0, 3)
     with pytest.warns(MeshFileWarning), pytest.raises(MeshFileError, match="no faces"):
         cio.load_mesh(path)
+
+
+def _file_warnings(load, path):
+    """Call ``load(path)``; return its result and the MeshFileWarning messages it issued."""
+    import warnings
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = load(path)
+    return result, [str(w.message) for w in caught if issubclass(w.category, MeshFileWarning)]
+
+
+def test_a_file_of_only_line_elements_warns_once_with_their_count(tmp_path):
+    # a wireframe: OBJ ``l`` records (a polyline counts once), no faces
+    path = write(tmp_path / "wire.obj", OBJ_HEAD + "l 1 2\n# a comment\nl 2 3 1\n")
+    (V, F), messages = _file_warnings(cio.load_shape, path)
+    assert messages == [f"{path}: dropped 2 line element(s) (the first at line 4); "
+                        "kept 0 face(s)"]
+    assert V.tolist() == [[0, 0, 0], [1, 0, 0], [0, 1, 0]] and F.shape == (0, 3)
+    with pytest.warns(MeshFileWarning, match="2 line element"), \
+            pytest.raises(MeshFileError, match="no faces"):
+        cio.load_mesh(path)
+
+
+def test_line_elements_and_short_faces_are_counted_in_one_warning(tmp_path):
+    path = write(tmp_path / "mixed.obj", OBJ_HEAD + "f 1 2 3\nl 1 2\nf 2 3\nl 3 1\n")
+    (V, F), messages = _file_warnings(cio.load_mesh, path)
+    assert messages == [f"{path}: dropped 1 face(s) with fewer than 3 vertices (the first at "
+                        "line 6) and 2 line element(s) (the first at line 5); kept 1 face(s)"]
+    assert F.tolist() == [[0, 1, 2]] and len(V) == 3
+
+
+def test_a_file_without_dropped_elements_loads_without_warning(tmp_path):
+    path = write(tmp_path / "tri.obj", OBJ_HEAD + "f 1 2 3\n")
+    assert _file_warnings(cio.load_mesh, path)[1] == []
 
 
 @pytest.mark.parametrize("name, content, match", BAD_FILES, ids=[b[0] for b in BAD_FILES])

@@ -39,12 +39,14 @@ def apply(ctx, mesh, cage, deformed_cage, out, coords, as_json):
     the same cage with moved vertices (same count and order; if it has faces they must
     be CAGE's). The points are bound once to CAGE with generalised barycentric
     coordinates and mapped through DEFORMED_CAGE; the result, with MESH's faces, is
-    written to OUT.
+    written to OUT. A DEFORMED_CAGE that intersects itself is used, with a warning: the
+    motion folds the shape.
 
     \b
     Example:
       cagekit apply shape.obj cage.obj cage_deformed.obj -o deformed.obj
     """
+    from cagekit.cage import warn_self_intersecting
     from cagekit.coords.binding import warn_outside
 
     start_command(ctx)
@@ -60,6 +62,7 @@ def apply(ctx, mesh, cage, deformed_cage, out, coords, as_json):
 
     t0 = time.perf_counter()
     outside = warn_outside(V, CV, faces, shape=mesh, cage=cage)
+    warn_self_intersecting(DV, faces, name=deformed_cage)  # the motion folds the shape
     seconds["check"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
