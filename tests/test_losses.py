@@ -132,8 +132,8 @@ def test_chamfer_gradient_with_shared_tree_and_many_to_one():
 
 def test_chamfer_known_value():
     value, grad = chamfer_loss(np.array([[0.0, 0, 0]]), np.array([[0.0, 0, 2]]))
-    assert value == 8.0
-    np.testing.assert_array_equal(grad, [[0.0, 0.0, -8.0]])
+    assert value == pytest.approx(8.0, rel=1e-15)
+    np.testing.assert_allclose(grad, [[0.0, 0.0, -8.0]], rtol=1e-15, atol=1e-15)
     # two P points, one Q point: mean over P of 1 and 9 -> 5; Q's nearest (x=1) -> 1
     P = np.array([[1.0, 0, 0], [3.0, 0, 0]])
     value, grad = chamfer_loss(P, np.zeros((1, 3)))
@@ -528,7 +528,8 @@ def test_mvc_known_value():
     W = np.array([[1.5, -0.5, 0.0], [-1.0, 0.25, 0.0]])
     value, grad = mvc_loss(W)
     assert value == pytest.approx((0.25 + 1.0) / 6)
-    np.testing.assert_array_equal(grad, [[0.0, -1 / 6, 0.0], [-2 / 6, 0.0, 0.0]])
+    np.testing.assert_allclose(grad, [[0.0, -1 / 6, 0.0], [-2 / 6, 0.0, 0.0]],
+                               rtol=1e-15, atol=1e-16)
 
 
 def test_mvc_gradient_matches_finite_differences():
