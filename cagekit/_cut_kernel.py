@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
-import numba
-import numpy as np
+from cagekit._numba_setup import configure as _configure_numba
+
+_configure_numba()  # before any kernel is defined (numba's cache folder, threading layer)
+
+import numba  # noqa: E402
+import numpy as np  # noqa: E402
 
 #: slack of the plane test, relative to the coordinates' size
 SLACK = 1e-9

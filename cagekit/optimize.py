@@ -1,14 +1,25 @@
-"""L-BFGS with an analytic gradient, robust to nlopt's line-search failures.
+"""L-BFGS with an analytic gradient, robust to nlopt's line-search failures and to Ctrl-C.
 
 Both cage optimisations (:func:`cagekit.deform` and
 :func:`cagekit_learn.consistency.fit_cage_by_consistency`) minimise a smooth-almost-
 everywhere energy of the cage vertices with nlopt's ``LD_LBFGS``. The Chamfer term is not
 differentiable where a nearest neighbour switches, and nlopt then ends a run with an
 exception; :func:`minimise` keeps the best point seen and restarts from it once.
+
+nlopt calls the objective from native code, which must never see an exception other than
+its own ``ForcedStop``: one it does not expect (a ``KeyboardInterrupt`` raised by the SIGINT
+handler, say) leaves it running on with the exception set, and it comes out later as a
+``SystemError`` ("returned a result with an exception set") or not at all. So an exception
+of the objective is kept and the run forced to stop, and a SIGINT that arrives while nlopt
+runs is handed to the installed handler at the start of the next evaluation (or once nlopt
+has returned), where what the handler raises is kept the same way.
 """
 
 from __future__ import annotations
 
+import contextlib
+import signal
+import threading
 from dataclasses import dataclass
 
 import nlopt
@@ -44,7 +55,9 @@ def minimise(objective, x0, max_evaluations: int, tolerance: float,
     ----------
     objective : callable
         ``objective(x) -> (value, gradient)``, ``x`` and ``gradient`` in the shape of
-        ``x0``. An exception it raises is re-raised (nlopt's own failures are not).
+        ``x0``. An exception it raises (``KeyboardInterrupt`` included) is re-raised once
+        nlopt has returned, and it is not called again (nlopt's own failures are not
+        re-raised).
     x0 : ndarray of float64
         The start, any shape (a (k, 3) cage, typically).
     max_evaluations : int
@@ -58,6 +71,12 @@ def minimise(objective, x0, max_evaluations: int, tolerance: float,
     -------
     Minimum
 
+    Raises
+    ------
+    BaseException
+        What ``objective`` or ``progress`` raised, or what the SIGINT handler raised for a
+        SIGINT during the run (``KeyboardInterrupt`` by default).
+
     Examples
     --------
     >>> m = minimise(lambda x: (float((x ** 2).sum()), 2 * x), np.ones((2, 3)), 50, 1e-12)
@@ -65,41 +84,118 @@ def minimise(objective, x0, max_evaluations: int, tolerance: float,
     (True, (2, 3))
     """
     x0 = np.asarray(x0, dtype=np.float64)
-    shape = x0.shape
-    best = {"f": np.inf, "x": x0.ravel().copy()}
-    failure = []
-    calls = [0]
+    with _sigint_deferred() as pending:
+        search = _Search(objective, x0, max_evaluations, progress, pending)
+        budget = max_evaluations
+        for _ in range(2):
+            start = search.calls
+            if search.run(budget, tolerance):
+                break  # converged (tolerance) or out of evaluations
+            budget -= search.calls - start
+            if budget <= 0:
+                break
+    return Minimum(search.best_x.reshape(x0.shape), float(search.best_f), search.calls)
 
-    def wrapped(x, grad):
+
+class _Search:
+    """The objective as nlopt calls it: the best point seen, the calls, and the exception
+    that stopped the search (raised again once nlopt has returned)."""
+
+    def __init__(self, objective, x0, max_evaluations, progress, pending):
+        self.objective, self.shape = objective, x0.shape
+        self.max_evaluations, self.progress, self.pending = max_evaluations, progress, pending
+        self.best_f, self.best_x = np.inf, x0.ravel().copy()
+        self.calls = 0
+        self.failure: BaseException | None = None
+
+    def __call__(self, x, grad):
+        """nlopt's objective: never lets an exception but ``ForcedStop`` out."""
         try:
-            f, g = objective(x.reshape(shape))
-        except Exception as exc:  # noqa: BLE001 - handed back after nlopt returns
-            failure.append(exc)
-            raise nlopt.ForcedStop from exc
-        calls[0] += 1
+            if self.failure is None:
+                self.pending()  # a deferred SIGINT: its handler runs here
+                return self._evaluate(x, grad)
+        except BaseException as exc:  # noqa: BLE001 - raised again once nlopt returns
+            self.failure = exc
+        raise nlopt.ForcedStop
+
+    def _evaluate(self, x, grad):
+        f, g = self.objective(x.reshape(self.shape))
+        self.calls += 1
         if grad.size:
             grad[:] = np.asarray(g).ravel()
-        if progress is not None:
-            progress(calls[0], max_evaluations)
-        if f < best["f"]:
-            best["f"], best["x"] = f, x.copy()
+        if self.progress is not None:
+            self.progress(self.calls, self.max_evaluations)
+        if f < self.best_f:
+            self.best_f, self.best_x = f, x.copy()
         return f
 
-    budget = max_evaluations
-    for _ in range(2):
-        start = calls[0]
-        opt = nlopt.opt(nlopt.LD_LBFGS, x0.size)
-        opt.set_min_objective(wrapped)
+    def run(self, budget: int, tolerance: float) -> bool:
+        """One L-BFGS run from the best point so far; True when it ended normally (converged
+        or out of evaluations), False when nlopt failed (roundoff...). Raises what stopped
+        it."""
+        opt = nlopt.opt(nlopt.LD_LBFGS, self.best_x.size)
+        opt.set_min_objective(self)
         opt.set_ftol_rel(tolerance)
         opt.set_maxeval(max(budget, 1))
         opt.set_vector_storage(10)
         try:
-            opt.optimize(best["x"].copy())
-            break  # converged (tolerance) or out of evaluations
-        except Exception:  # noqa: BLE001 - nlopt's roundoff / failure: keep the best point
-            if failure:
-                raise failure[0] from None
-        budget -= calls[0] - start
-        if budget <= 0:
-            break
-    return Minimum(best["x"].reshape(shape), float(best["f"]), calls[0])
+            opt.optimize(self.best_x.copy())
+            ended = True
+        except Exception as exc:  # noqa: BLE001 - nlopt's roundoff / failure: keep the best
+            ended = False
+            cause = _interrupt_in_chain(exc)
+            if self.failure is None and cause is not None:
+                self.failure = cause  # escaped our wrapper (it should not): never lose it
+        self.pending()  # a SIGINT after the last evaluation
+        if self.failure is not None:
+            raise self.failure
+        return ended
+
+
+def _interrupt_in_chain(exc: BaseException) -> BaseException | None:
+    """The first exception in ``exc``'s cause/context chain that is not an ``Exception``
+    (``KeyboardInterrupt``, the command line's ``Interrupted``), or None."""
+    todo, seen = [exc], set()
+    while todo:
+        exc = todo.pop()
+        if exc is None or id(exc) in seen:
+            continue
+        if not isinstance(exc, Exception):
+            return exc
+        seen.add(id(exc))
+        todo += [exc.__cause__, exc.__context__]
+    return None
+
+
+@contextlib.contextmanager
+def _sigint_deferred():
+    """While the block runs, a SIGINT only takes note; yields ``pending()``, which calls
+    the SIGINT handler that was installed (it may raise) if one arrived since the last call.
+
+    Only in the main thread (where Python runs signal handlers) and only when the installed
+    handler is a Python function (``SIG_DFL`` and ``SIG_IGN`` raise nothing). The handler
+    is put back when the block ends, unless the handler replaced itself meanwhile (the
+    command line's ignores a second Ctrl-C while the first unwinds).
+    """
+    previous = signal.getsignal(signal.SIGINT)
+    if not callable(previous) or threading.current_thread() is not threading.main_thread():
+        yield lambda: None
+        return
+    arrived = []
+
+    def pending():
+        if arrived:
+            frame = arrived.pop()
+            arrived.clear()
+            previous(signal.SIGINT, frame)
+
+    def note(signum, frame):
+        arrived.append(frame)
+
+    signal.signal(signal.SIGINT, note)
+    try:
+        yield pending
+    finally:
+        if signal.getsignal(signal.SIGINT) is note:
+            signal.signal(signal.SIGINT, previous)
+        pending()  # one that came after the last call is not lost

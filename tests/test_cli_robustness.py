@@ -162,7 +162,7 @@ def test_library_warnings_are_one_line_each(tmp_path):
     assert result.returncode == 0, result.stderr
     assert stderr_lines(result) == [
         f"cagekit render: warning: {lines}: dropped 1 face(s) with fewer than 3 vertices "
-        "(the first at line 9); kept 4"]
+        "(the first at line 9) and 1 line element(s) (the first at line 10); kept 4 face(s)"]
 
 
 def run_command_doing(statement):

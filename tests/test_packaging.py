@@ -42,10 +42,13 @@ def test_every_commands_help_imports_none_of_the_heavy_libraries():
 
 def test_the_command_lines_choices_are_the_librarys():
     import cagekit
+    from cagekit import fitting
     from cagekit.cli.common import (
         COORDINATE_METHODS,
         DEFORM_COORDINATE_METHODS,
         FIT_METHODS,
+        MAX_FACES,
+        MIN_FACES,
         TEMPLATE_FACES,
     )
     from cagekit.coords.binding import METHODS
@@ -56,6 +59,7 @@ def test_the_command_lines_choices_are_the_librarys():
     assert COORDINATE_METHODS == METHODS and FIT_METHODS == FITTING
     assert DEFORM_COORDINATE_METHODS == COORDS
     assert TEMPLATE_FACES == FITTING_TEMPLATE_FACES
+    assert (MIN_FACES, MAX_FACES) == (fitting.MIN_FACES, fitting.MAX_FACES)
     assert sorted(dir(cagekit)) == sorted(cagekit.__all__)
     for name in cagekit.__all__:  # every lazily exported name resolves
         assert getattr(cagekit, name) is not None

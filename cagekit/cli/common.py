@@ -17,7 +17,11 @@ core (lazily, so that ``--help`` stays fast). The rules (docs/architecture.md):
   ``--debug`` shows Python's usual form;
 - SIGINT (Ctrl-C) ends the command with one line, ``interrupted``, and status 130; outputs
   being written are removed (they are atomic), folders the command made are removed when
-  empty;
+  empty; an error that an interrupt caused (native code that called Python back wraps it
+  in a SystemError) is the interrupt; once the command has finished, a SIGINT while the
+  process exits is ignored (Python would otherwise die by the signal, with no line);
+- numba's threading layer and cache folder are set when a command starts
+  (:func:`cagekit._numba_setup.configure`), so the processes it starts inherit them;
 - a crash in native code (a segmentation fault in a compiled library, a bug) prints
   Python's fault handler report (the Python call that crashed) instead of dying silently;
 - ``--json`` prints one JSON object on stdout and nothing else there;
@@ -30,6 +34,7 @@ import contextlib
 import json
 import math
 import os
+import signal
 import sys
 import traceback
 
@@ -39,7 +44,7 @@ from cagekit.errors import InputError
 from cagekit.progress import bar_callback, progress_bar, progress_enabled
 
 __all__ = ["BIND_CHUNK", "COORDINATE_METHODS", "DEFORM_COORDINATE_METHODS", "FIT_METHODS",
-           "TEMPLATE_FACES", "Command",
+           "TEMPLATE_FACES", "MIN_FACES", "MAX_FACES", "Command",
            "FiniteFloatRange", "Group", "Interrupted", "OneLineErrors", "bar_callback",
            "bind_with_progress", "check_output", "debug_option", "emit_json", "json_option",
            "one_line", "preview_up_option", "progress_bar", "progress_enabled", "same_file",
@@ -56,6 +61,8 @@ COORDINATE_METHODS = ("mvc", "green")
 DEFORM_COORDINATE_METHODS = ("mvc", "green")
 FIT_METHODS = ("wrap", "template")
 TEMPLATE_FACES = 80
+#: the face budget's range (:data:`cagekit.fitting.MIN_FACES`, :data:`~cagekit.fitting.MAX_FACES`)
+MIN_FACES, MAX_FACES = 4, 100_000
 
 
 def one_line(text: str) -> str:
@@ -80,58 +87,95 @@ class OneLineErrors:
 
     def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True,
              **extra):
-        """Run the command line; exit with 0, 1 (failure) or 2 (bad input or usage)."""
-        import numpy as np
-
+        """Run the command line; exit with 0, 1 (failure), 2 (bad input or usage) or 130
+        (interrupted)."""
         args = list(sys.argv[1:] if args is None else args)
         _CURRENT.clear()
         debug = _debug_requested(args)
         prog = prog_name or "cagekit"
-        where = prog
         _report_native_crashes()
+        if standalone_mode:
+            _ignore_sigint_at_exit()
         with _one_line_warnings(prog, debug), _sigint_raises(Interrupted):
             try:
-                try:
-                    with np.errstate(all="ignore"):  # no NumPy warnings on stderr
-                        rv = super().main(args, prog_name=prog, complete_var=complete_var,
-                                          standalone_mode=False, **extra)
-                except click.exceptions.NoArgsIsHelpError as exc:
-                    click.echo(exc.ctx.get_help())
-                    rv = 0
-                code = rv if isinstance(rv, int) else 0
-            except click.UsageError as exc:
-                if exc.ctx is not None:
-                    where = exc.ctx.command_path
-                hint = f" (see '{where} --help')"
-                error, code, message = exc, exc.exit_code, f"{exc.format_message()}{hint}"
-            except (click.Abort, KeyboardInterrupt, Interrupted) as exc:
-                error, code, message = exc, 130, "interrupted"
-            except click.ClickException as exc:
-                error, code, message = exc, exc.exit_code, exc.format_message()
-            except InputError as exc:
-                error, code, message = exc, 2, str(exc)
-            except OSError as exc:
-                error, code, message = exc, 1, _os_error_message(exc)
-            except MemoryError as exc:
-                error, code, message = exc, 1, "out of memory"
-            except Exception as exc:  # noqa: BLE001  (a bug: one line, pointing at --debug)
-                error, code = exc, 1
-                message = f"internal error: {type(exc).__name__}: {exc}"
-                if not debug:
-                    message += " (run with --debug for the traceback)"
-            else:
-                if standalone_mode:
-                    sys.exit(code)
-                return code
-            if debug:
-                traceback.print_exception(error, file=sys.stderr)
-            where = _CURRENT.get("command", where)
-            # on a terminal, a carriage return overwrites the "^C" it echoed
-            start = "\r" if code == 130 and progress_enabled() else ""
-            click.echo(f"{start}{where}: error: {one_line(message)}", err=True)
+                code, error, message = self._outcome(args, prog, complete_var, debug, extra)
+                if error is not None:
+                    _print_error(code, error, message, debug, prog)
+            except (click.Abort, KeyboardInterrupt, Interrupted) as exc:  # while reporting
+                code = 130
+                _print_error(code, exc, "interrupted", debug, prog)
         if standalone_mode:
             sys.exit(code)
         return code
+
+    def _outcome(self, args, prog, complete_var, debug, extra):
+        """Run the command: (exit status, the exception or None, the error line or None)."""
+        import numpy as np
+
+        try:
+            try:
+                with np.errstate(all="ignore"):  # no NumPy warnings on stderr
+                    rv = super().main(args, prog_name=prog, complete_var=complete_var,
+                                      standalone_mode=False, **extra)
+            except click.exceptions.NoArgsIsHelpError as exc:
+                click.echo(exc.ctx.get_help())
+                rv = 0
+        except (click.Abort, KeyboardInterrupt, Interrupted) as exc:
+            return 130, exc, "interrupted"
+        except Exception as exc:  # noqa: BLE001 - classified: one line each
+            if _interrupt_in_chain(exc):  # raised while an interrupt unwound (or wrapping it)
+                return 130, exc, "interrupted"
+            return _classify(exc, debug, prog)
+        return (rv if isinstance(rv, int) else 0), None, None
+
+
+def _classify(exc: Exception, debug: bool, prog: str) -> tuple[int, Exception, str]:
+    """(exit status, exc, message) of a command's exception."""
+    if isinstance(exc, click.UsageError):
+        where = exc.ctx.command_path if exc.ctx is not None else prog
+        return exc.exit_code, exc, f"{exc.format_message()} (see '{where} --help')"
+    if isinstance(exc, click.ClickException):
+        return exc.exit_code, exc, exc.format_message()
+    if isinstance(exc, InputError):
+        return 2, exc, str(exc)
+    if isinstance(exc, OSError):
+        return 1, exc, _os_error_message(exc)
+    if isinstance(exc, MemoryError):
+        return 1, exc, "out of memory"
+    message = f"internal error: {type(exc).__name__}: {exc}"  # a bug: pointing at --debug
+    if not debug:
+        message += " (run with --debug for the traceback)"
+    return 1, exc, message
+
+
+def _interrupt_in_chain(exc: BaseException) -> bool:
+    """True if ``exc`` was caused by an interrupt, or raised while one unwound: a
+    KeyboardInterrupt or :class:`Interrupted` in its cause/context chain (native code that
+    calls Python back wraps one in a SystemError, "returned a result with an exception
+    set"; a clean-up that fails chains it)."""
+    todo, seen = [exc], set()
+    while todo:
+        exc = todo.pop()
+        if exc is None or id(exc) in seen:
+            continue
+        if isinstance(exc, (KeyboardInterrupt, Interrupted, click.Abort)):
+            return True
+        seen.add(id(exc))
+        todo += [exc.__cause__, exc.__context__]
+    return False
+
+
+def _print_error(code: int, error: BaseException, message: str, debug: bool,
+                 prog: str) -> None:
+    """The error line on stderr, ``<command>: error: <message>`` (after the traceback with
+    ``--debug``)."""
+    if debug:
+        traceback.print_exception(error, file=sys.stderr)
+    usage = isinstance(error, click.UsageError) and error.ctx is not None
+    where = _CURRENT.get("command", error.ctx.command_path if usage else prog)
+    # on a terminal, a carriage return overwrites the "^C" it echoed
+    start = "\r" if code == 130 and progress_enabled() else ""
+    click.echo(f"{start}{where}: error: {one_line(message)}", err=True)
 
 
 def _report_native_crashes() -> None:
@@ -176,10 +220,32 @@ def _package_of(filename: str) -> str:
     return os.path.basename(filename).removesuffix(".py")
 
 
+def _ignore_sigint_at_exit() -> None:
+    """Ignore SIGINT once the interpreter exits (registered with ``atexit`` once).
+
+    When Python tears itself down it puts SIGINT back to the system's default, which kills
+    the process (status -2, no line) if Ctrl-C comes while it frees its modules (numba's and
+    LLVM's take a while); the command's work and its report are done by then. An ignored
+    SIGINT stays ignored through that.
+    """
+    import atexit
+
+    if not _EXIT_HOOK:
+        _EXIT_HOOK.append(_ignore_sigint)
+        atexit.register(_ignore_sigint)
+
+
+def _ignore_sigint() -> None:
+    """SIGINT ignored from now on (in the main thread; elsewhere Python cannot set it)."""
+    import threading
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 @contextlib.contextmanager
 def _sigint_raises(exception):
     """SIGINT raises ``exception`` in the main thread while the block runs."""
-    import signal
     import threading
 
     if threading.current_thread() is not threading.main_thread():
@@ -207,6 +273,8 @@ def _os_error_message(exc: OSError) -> str:
 
 #: the running command's name, for error lines ("cagekit apply: error: ...")
 _CURRENT: dict[str, str] = {}
+#: the exit hook of :func:`_ignore_sigint_at_exit`, once registered
+_EXIT_HOOK: list = []
 
 
 class Group(OneLineErrors, click.Group):
@@ -229,7 +297,13 @@ class FiniteFloatRange(click.FloatRange):
 
 
 def start_command(ctx: click.Context) -> None:
+    """Start a command: its name for the error lines, and numba's settings
+    (:func:`cagekit._numba_setup.configure`) before any kernel is defined, so that the
+    processes the command starts inherit them."""
+    from cagekit._numba_setup import configure
+
     _CURRENT["command"] = ctx.command_path
+    configure()
 
 
 def same_file(a: str, b: str) -> bool:

@@ -9,6 +9,8 @@ import click
 
 from cagekit.cli.common import (
     DEFORM_COORDINATE_METHODS,
+    MAX_FACES,
+    MIN_FACES,
     bar_callback,
     check_output,
     debug_option,
@@ -109,7 +111,7 @@ def _load_landmark_pair(src_path, tgt_path):
 @click.option("--cage", "cage_path", type=click.Path(dir_okay=False), default=None,
               help="SOURCE's cage (closed, around it); fitted with fit-cage when left out.")
 @click.option("--faces", default=200, show_default=True,
-              type=click.IntRange(min=4, max=100_000),
+              type=click.IntRange(min=MIN_FACES, max=MAX_FACES),
               help="Face budget of the fitted cage (without --cage).")
 @click.option("--save-cage", type=click.Path(dir_okay=False), default=None,
               help="Write the source cage here and the deformed cage beside it "

@@ -9,6 +9,8 @@ import click
 
 from cagekit.cli.common import (
     FIT_METHODS,
+    MAX_FACES,
+    MIN_FACES,
     TEMPLATE_FACES,
     check_output,
     debug_option,
@@ -26,7 +28,7 @@ from cagekit.errors import InputError
 @click.option("-o", "--output", "out", required=True, type=click.Path(dir_okay=False),
               help="Cage mesh to write (OBJ, OFF, PLY, STL, GLB).")
 @click.option("--faces", default=200, show_default=True,
-              type=click.IntRange(min=4, max=100_000),
+              type=click.IntRange(min=MIN_FACES, max=MAX_FACES),
               help="Largest number of cage faces (method wrap; the template has 80).")
 @click.option("--method", type=click.Choice(list(FIT_METHODS)), default="wrap",
               show_default=True,

@@ -1,13 +1,8 @@
 """Generalised barycentric coordinates with respect to a cage."""
 
-import warnings
+from cagekit._numba_setup import configure as _configure_numba
 
-from numba.core.errors import NumbaWarning
-
-# numba tries a system TBB first and warns on stderr when it is too old, then falls back to
-# OpenMP or its own work queue; the warning says nothing a cagekit user can act on.
-warnings.filterwarnings("ignore", message="The TBB threading layer requires TBB",
-                        category=NumbaWarning)
+_configure_numba()  # before any kernel is defined (numba's cache folder, threading layer)
 
 from cagekit.coords.binding import METHODS, CageBinding, GreenBinding, bind  # noqa: E402
 from cagekit.coords.green import green_coordinates  # noqa: E402
