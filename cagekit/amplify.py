@@ -3,35 +3,44 @@
 The paper's first application. Pairs are drawn (seeded), listed, or all taken; each item
 deforms its source to its target's proportions (:func:`cagekit.deform`) and is scored
 (:func:`cagekit.evaluate`), and a plausibility filter marks the implausible ones
-``rejected``. Items run on a process pool or on any ``concurrent.futures`` executor (a
-cluster's); each is a pure function of (source, target, method, seed), so the results do
-not depend on where or in which order they ran. A source's cage is fitted once and
-reused by its later pairs. The manifest (CSV and JSON) is rewritten atomically after every
-finished item, so a killed batch loses only the items in flight, and a rerun redoes only
-items that are missing or whose inputs changed (content hashes). docs/architecture.md has
-the data path.
+``rejected``. Items run on a process pool (no more processes than items or cores; they
+end with the batch, Ctrl-C and SIGKILL included; their warnings are issued again in the
+main process) or on any ``concurrent.futures`` executor (a cluster's); each is a pure
+function of (source, target, method, seed), so the results do not depend on where or in
+which order they ran. A source's cage is fitted once, into a file of its own, and reused
+by its later pairs, and by a later run while neither the source nor the cage file
+changed. The output folder may not lie in the collection. The manifest (CSV and JSON) is
+rewritten atomically after every finished item, so a killed batch loses only the items in
+flight, and a rerun redoes only items that are missing or whose inputs changed (content
+hashes). docs/architecture.md has the data path.
 """
 
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import csv
 import io
 import json
 import multiprocessing
 import os
+import pickle
+import signal
+import sys
+import threading
 import time
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
-from cagekit.collection import Shape, find_shapes, load_shape_of
-from cagekit.errors import InputError
+from cagekit.collection import SYNTHETIC_PREFIX, Shape, file_hash, find_shapes, load_shape_of
+from cagekit.errors import CagekitWarning, InputError
 from cagekit.files import atomic_output, one_line, read_text
 
 __all__ = ["COLUMNS", "COORDS", "MAX_CD", "MAX_NONAFFINITY", "METHODS", "SHEET_COLUMNS", "Item",
            "amplify", "contact_sheet", "deform_item", "plan_pairs", "prepare_worker",
-           "process_pool"]
+           "process_pool", "usable_cores"]
 
 METHODS = ("cage", "scale", "model")
 #: the coordinates of method cage (:data:`cagekit.deformation.COORDS`)
@@ -162,17 +171,41 @@ def plan_pairs(shapes, *, variations=None, pairs=None, category_by=None,
     return out
 
 
+def _unique_file(base: str, seen: set) -> str:
+    """``<base>.obj``, or ``<base>-2.obj``, ``-3``... the first not in ``seen`` (added)."""
+    name, k = f"{base}.obj", 2
+    while name in seen:
+        name, k = f"{base}-{k}.obj", k + 1
+    seen.add(name)
+    return name
+
+
 def _items(pairs) -> list[Item]:
     """Items with unique output names (``<source>__<target>.obj``, ``-2`` on collisions)."""
-    seen, items = set(), []
-    for source, target in pairs:
-        base = f"{source.stem}__{target.stem}"
-        name, k = f"{base}.obj", 2
-        while name in seen:
-            name, k = f"{base}-{k}.obj", k + 1
-        seen.add(name)
-        items.append(Item(source, target, name))
-    return items
+    seen: set = set()
+    return [Item(source, target, _unique_file(f"{source.stem}__{target.stem}", seen))
+            for source, target in pairs]
+
+
+def _cage_files(shapes) -> dict[str, str]:
+    """Unique cage file names of a collection's shapes, by :attr:`Shape.name`.
+
+    ``<stem>.obj``, ``-2`` on collisions as :func:`_items` names variations (``a/chair``
+    and ``a-chair`` are both ``a-chair``), given in name order over the whole collection,
+    so that a shape keeps its file whatever the plan.
+
+    Parameters
+    ----------
+    shapes : list of Shape
+
+    Returns
+    -------
+    dict of str to str
+        File name under ``cages/`` of each shape's name.
+    """
+    seen: set = set()
+    return {shape.name: _unique_file(shape.stem, seen)
+            for shape in sorted(shapes, key=lambda s: s.name)}
 
 
 # ------------------------------------------------------------------------------ one item
@@ -210,28 +243,70 @@ def deform_item(source: str, target: str, method: str = "cage", seed: int = 0, c
         ``vertices`` (n, 3) float64 and ``faces`` of the variation, the figures of
         :func:`cagekit.evaluate` (``cd``, ``dcotlap``, part non-affinity, planarity), the
         ``cage`` used (or None), ``seconds`` (the whole item) and ``cage_seconds`` (the fit,
-        0 when the cage was given).
+        0 when the cage was given); ``warnings``, those the item issued, as
+        ``(message, category, filename, lineno)`` for :func:`amplify` to issue again where
+        the batch runs (a worker's own stderr is not the command's; an item run in a
+        thread other than the main one leaves its warnings where they are issued).
     """
-    from threadpoolctl import threadpool_limits
-
     start = time.perf_counter()
     out = {"status": "failed", "error": "", "cage": None, "cage_seconds": 0.0}
-    try:
-        if _WORKER_NUMBA_THREADS is not None:
-            import numba
-
-            numba.set_num_threads(_WORKER_NUMBA_THREADS)
-        with threadpool_limits(limits=1, user_api="blas"):
-            figures, result, Fs = _deform_and_score(source, target, method, seed, cage,
-                                                    deformer, out, coords)
-    except Exception as exc:  # noqa: BLE001 - one item fails, never the batch
-        out["error"] = one_line(exc)
+    with _recorded_warnings() as caught:
+        try:
+            figures, result, Fs = _limited(source, target, method, seed, cage, deformer,
+                                           out, coords)
+        except Exception as exc:  # noqa: BLE001 - one item fails, never the batch
+            figures = None
+            out["error"] = one_line(exc)
+    out["warnings"] = _taken(_STARTUP_WARNINGS) + [_portable(w) for w in caught]
+    if figures is None:
         out["seconds"] = time.perf_counter() - start
         return out
     out.update({name: figures[name] for name in _FIGURES})
     out.update(status="ok", vertices=result.vertices, faces=Fs,
                seconds=time.perf_counter() - start)
     return out
+
+
+def _limited(*args):
+    """:func:`_deform_and_score` on one BLAS thread (and the worker's numba threads)."""
+    from threadpoolctl import threadpool_limits
+
+    if _WORKER_NUMBA_THREADS is not None:
+        import numba
+
+        numba.set_num_threads(_WORKER_NUMBA_THREADS)
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _deform_and_score(*args)
+
+
+@contextlib.contextmanager
+def _recorded_warnings():
+    """Record the warnings issued in the block (yields the list), on the main thread only:
+    ``warnings.catch_warnings`` is process-wide, so items in threads (a Dask worker of
+    several threads) leave their warnings to the worker, as before."""
+    if threading.current_thread() is not threading.main_thread():
+        yield []
+        return
+    with warnings.catch_warnings(record=True) as caught:
+        yield caught
+
+
+def _taken(kept: list) -> list:
+    """The items of ``kept``, which is emptied."""
+    taken = list(kept)
+    del kept[: len(taken)]
+    return taken
+
+
+def _portable(warning) -> tuple:
+    """A recorded warning as ``(message, category, filename, lineno)``, fit to return from
+    a worker (a category that cannot be pickled travels as UserWarning)."""
+    category = warning.category
+    try:
+        pickle.dumps(category)
+    except Exception:  # noqa: BLE001 - a local class, say
+        category = UserWarning
+    return str(warning.message), category, warning.filename, warning.lineno
 
 
 def _deform_and_score(source, target, method, seed, cage, deformer, out, coords):
@@ -332,6 +407,61 @@ def _done(row, item, method, seed, coords, folder, drop_rejected) -> bool:
         os.path.exists(os.path.join(folder, "rejected", item.output)) or drop_rejected)
 
 
+class _Cages:
+    """The sources' cages under ``cages/``, each reused only for the source it was fitted to.
+
+    Every shape of the collection has its own file (:func:`_cage_files`). The manifest's
+    ``cages`` map records, by source name, the ``file``, the source's content ``hash``
+    when the cage was fitted, and the cage file's own ``cage_hash``. An earlier run's
+    entry is kept only when all three still hold (the file is this shape's, the source
+    is unchanged, the file is the one written); any other cage is fitted again.
+    """
+
+    def __init__(self, folder, shapes, manifest):
+        self.folder, self.manifest = folder, manifest
+        self.files = _cage_files(shapes)
+        hashes = {shape.name: shape.fingerprint for shape in shapes}
+        manifest.cages = {name: entry for name, entry in manifest.cages.items()
+                          if self._valid(entry, self.files.get(name), hashes.get(name))}
+
+    def _path(self, file: str) -> str:
+        return os.path.join(self.folder, "cages", file)
+
+    def _valid(self, entry, file, source_hash) -> bool:
+        """An earlier run's entry that still names this source's own, unchanged cage."""
+        if not isinstance(entry, dict) or file is None or entry.get("file") != file \
+                or entry.get("hash") != source_hash:
+            return False
+        try:
+            return entry.get("cage_hash") == file_hash(self._path(file))
+        except OSError:  # missing or unreadable: fitted again
+            return False
+
+    def has(self, name: str) -> bool:
+        """Whether the source ``name`` has a cage to reuse."""
+        return name in self.manifest.cages
+
+    def load(self, shape):
+        """The cage of ``shape``, ``(cage_v (k, 3) float64, cage_f (c, 3) int64)``, or
+        None when it has none to reuse."""
+        from cagekit.io import load_mesh
+
+        entry = self.manifest.cages.get(shape.name)
+        if entry is None or entry["hash"] != shape.fingerprint:
+            return None
+        return load_mesh(self._path(entry["file"]))
+
+    def save(self, shape, cage) -> None:
+        """Write the cage fitted to ``shape`` (atomically) and record it; the manifest is
+        saved by the caller."""
+        from cagekit.io import save_mesh
+
+        file = self.files[shape.name]
+        save_mesh(self._path(file), *cage)
+        self.manifest.cages[shape.name] = {"file": file, "hash": shape.fingerprint,
+                                           "cage_hash": file_hash(self._path(file))}
+
+
 # ---------------------------------------------------------------------------- the batch
 
 
@@ -350,17 +480,20 @@ def amplify(collection: str, out_dir: str, *, variations: int | None = None,
         A folder of meshes (recursive) or ``synthetic:<family>:<count>``
         (:func:`cagekit.collection.find_shapes`).
     out_dir : str
-        Output folder: ``variations/<source>__<target>.obj``, ``rejected/`` (the rejected
-        ones, unless ``drop_rejected``), ``cages/<source>.obj`` (each source's cage,
-        fitted once), ``manifest.csv`` and ``manifest.json`` (one row per item, columns
-        :data:`COLUMNS`; the JSON also lists the cages).
+        Output folder, outside the collection: ``variations/<source>__<target>.obj``,
+        ``rejected/`` (the rejected ones, unless ``drop_rejected``), ``cages/<source>.obj``
+        (each source's cage, fitted once; ``-2``... when two names flatten to one file
+        name), ``manifest.csv`` and ``manifest.json`` (one row per item, columns
+        :data:`COLUMNS`; the JSON also lists the cages, each with its file, its source's
+        hash and its own).
     variations, pairs, category_by, seed
         As :func:`plan_pairs` takes them; ``seed`` also seeds each item.
     method : {"cage", "scale", "model"}
         ``model`` needs ``deformer`` (see :func:`deform_item`).
     workers : int, optional
-        Local processes (default: every core); 1 runs the items in this process.
-        Ignored when ``executor`` is given.
+        Local processes (default: every core), never more than the items to do or the
+        cores (a :class:`~cagekit.errors.CagekitWarning` says so when a number asked for is
+        cut); 1 runs the items in this process. Ignored when ``executor`` is given.
     executor : concurrent.futures.Executor, optional
         Where the items run instead (a cluster's executor, for example
         ``dask.distributed.Client.get_executor()``); it must reach the collection's files
@@ -384,7 +517,9 @@ def amplify(collection: str, out_dir: str, *, variations: int | None = None,
     Raises
     ------
     InputError
-        Bad options, an unreadable collection, an unknown name in the pairs file.
+        Bad options, an unreadable collection, an unknown name in the pairs file, an
+        output folder that is the collection or lies in it (or holds it in one of its
+        sub-folders above), worker processes that cannot be started.
     KeyboardInterrupt
         Re-raised after the manifest is saved (items in flight are dropped).
 
@@ -403,7 +538,9 @@ def amplify(collection: str, out_dir: str, *, variations: int | None = None,
         raise InputError(f"unknown coordinates {coords!r}; available: {', '.join(COORDS)}")
     if coords != "mvc" and method != "cage":
         raise InputError(f"coords {coords} applies to method cage only")
-    items = _items(plan_pairs(find_shapes(collection), variations=variations, pairs=pairs,
+    _check_out_dir(collection, out_dir)
+    shapes = find_shapes(collection, exclude=[out_dir])
+    items = _items(plan_pairs(shapes, variations=variations, pairs=pairs,
                               category_by=category_by, seed=seed))
     for sub in ("variations", "cages") + (() if drop_rejected else ("rejected",)):
         os.makedirs(os.path.join(out_dir, sub), exist_ok=True)
@@ -419,14 +556,48 @@ def amplify(collection: str, out_dir: str, *, variations: int | None = None,
     manifest.rows = kept  # rows of other pairs, or of changed inputs, are dropped
     for row in kept.values():  # a changed filter applies to kept rows too
         _refile(row, _status(row, max_nonaffinity, max_cd), out_dir, drop_rejected)
+    cages = _Cages(out_dir, shapes, manifest)
     manifest.save(order)
-    runner = _Runner(items, todo, manifest, order, out_dir, method, seed, deformer,
+    runner = _Runner(items, todo, manifest, cages, order, out_dir, method, seed, deformer,
                      max_nonaffinity, max_cd, drop_rejected, progress, coords)
     runner.run(executor, workers)
     rows = [manifest.rows[key] for key in order]
     if contact_sheet_path:
         contact_sheet(rows, items, out_dir, contact_sheet_path)
     return rows
+
+
+#: the sub-folders a batch writes meshes into
+_SUBFOLDERS = ("variations", "rejected", "cages")
+
+
+def _inside(path: str, folder: str) -> bool:
+    """Whether resolved ``path`` is resolved ``folder`` or lies below it."""
+    return path == folder or path.startswith(folder.rstrip(os.sep) + os.sep)
+
+
+def _check_out_dir(collection: str, out_dir: str) -> None:
+    """Refuse an output folder that is the collection or lies in it (the next run would
+    read its variations and cages as shapes), or that holds the collection in a folder a
+    batch writes into (an input would be overwritten).
+
+    Raises
+    ------
+    InputError
+        Naming ``out_dir``.
+    """
+    if collection.startswith(SYNTHETIC_PREFIX) or not os.path.isdir(collection):
+        return  # not a folder: find_shapes says so
+    root, out = os.path.realpath(collection), os.path.realpath(out_dir)
+    if _inside(out, root):
+        where = "is the collection" if out == root else f"lies in the collection {collection}"
+        raise InputError(f"the output folder {where}; choose one outside it (its meshes "
+                         "would be read as shapes)", out_dir)
+    for sub in _SUBFOLDERS:
+        if _inside(root, os.path.join(out, sub)):
+            raise InputError(f"the collection {collection} lies in the output's {sub}/ "
+                             "folder, which a batch writes into; choose another output "
+                             "folder", out_dir)
 
 
 def _refile(row, status, folder, drop_rejected):
@@ -454,14 +625,17 @@ def prepare_worker() -> None:
     fastbin chunk detected" and abort when the process exits (reproduced without Dask or
     numba; imported in the main thread first, it never happens). Runs numba's kernels on
     one thread, as the workers share the cores (numba's thread count does not change
-    results).
+    results). Warnings issued meanwhile (numba's about its threading layer, say) are kept
+    and returned with the next item (:func:`deform_item`), so that they reach the batch.
     """
-    import numba
-    import pymeshlab  # noqa: F401 - imported for its side effect, see above
-
     global _WORKER_NUMBA_THREADS
-    _WORKER_NUMBA_THREADS = 1
-    numba.set_num_threads(1)
+    with _recorded_warnings() as caught:
+        import numba
+        import pymeshlab  # noqa: F401 - imported for its side effect, see above
+
+        _WORKER_NUMBA_THREADS = 1
+        numba.set_num_threads(1)
+    _STARTUP_WARNINGS.extend(_portable(w) for w in caught)
 
 
 #: numba threads of an item in a prepared worker (:func:`prepare_worker`); None: numba's
@@ -469,33 +643,172 @@ def prepare_worker() -> None:
 #: thread, so :func:`deform_item` sets it again there (2 Dask workers of 2 threads each
 #: on 2 cores ran items 35% slower than the pool's).
 _WORKER_NUMBA_THREADS = None
+#: warnings :func:`prepare_worker` caught, not yet returned with an item
+_STARTUP_WARNINGS: list = []
 
 
 def process_pool(workers: int) -> cf.ProcessPoolExecutor:
     """The local pool :func:`amplify` runs on: ``workers`` processes, each prepared by
-    :func:`prepare_worker` and leaving Ctrl-C to the main process.
+    :func:`prepare_worker`, leaving Ctrl-C to the main process and ending when it ends.
 
     Spawned, not forked: a fork of a process whose numba kernels started OpenMP threads
-    is killed by the OpenMP runtime.
+    is killed by the OpenMP runtime. Start workers by submitting with SIGINT held
+    (:func:`_sigint_held`), and stop the pool with :func:`_stop_pool` when the batch
+    does not finish.
+
+    Raises
+    ------
+    OSError
+        The pool's pipes or locks cannot be made (too many open files, say).
     """
     return cf.ProcessPoolExecutor(max_workers=workers,
                                   mp_context=multiprocessing.get_context("spawn"),
-                                  initializer=_pool_worker)
+                                  initializer=_pool_worker, initargs=(os.getpid(),))
 
 
-def _pool_worker():
-    """A pool worker: :func:`prepare_worker`, and Ctrl-C left to the main process (which
-    stops the batch)."""
-    import signal
-
+def _pool_worker(parent: int) -> None:
+    """A pool worker: Ctrl-C left to the main process (which stops the batch), ended with
+    process ``parent`` (:func:`_end_with`), then :func:`prepare_worker`."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _end_with(parent)
     prepare_worker()
+
+
+def _end_with(parent: int) -> None:
+    """End this process as soon as process ``parent`` (its parent) ends, even by SIGKILL.
+
+    On Linux the kernel sends SIGKILL at once (``prctl(PR_SET_PDEATHSIG)``); everywhere, a
+    daemon thread checks every half second that the parent is still the one it was (an
+    orphan is adopted by another process) and ends the process when not.
+    """
+    _parent_death_signal(signal.SIGKILL)
+    if os.getppid() != parent:  # gone already, before the signal was asked for
+        os._exit(1)
+    threading.Thread(target=_watch_parent, args=(parent,), name="cagekit-parent-watch",
+                     daemon=True).start()
+
+
+def _parent_death_signal(signum: int) -> None:
+    """Ask the kernel (Linux) to send ``signum`` to this process when its parent ends; a
+    no-op elsewhere or when ``prctl`` cannot be called."""
+    if not sys.platform.startswith("linux"):
+        return
+    import ctypes
+
+    PR_SET_PDEATHSIG = 1
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, int(signum), 0, 0, 0)
+    except (OSError, AttributeError):  # no libc prctl: the watching thread remains
+        pass
+
+
+def _watch_parent(parent: int, interval: float = 0.5) -> None:
+    """Wait until this process's parent is no longer ``parent``; then end the process."""
+    while os.getppid() == parent:
+        time.sleep(interval)
+    os._exit(1)
+
+
+@contextlib.contextmanager
+def _sigint_held():
+    """Hold SIGINT back in this thread while the block runs.
+
+    A worker process started in the block inherits the mask: a Ctrl-C, which a terminal
+    sends to every process of the group, then never reaches a worker still importing
+    (before its initializer ignores SIGINT it would print a traceback). This process
+    still gets it (another of its threads takes it, and the main thread's handler runs).
+    """
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
+def _stop_pool(pool: cf.ProcessPoolExecutor) -> None:
+    """Stop a :func:`process_pool` now: queued items cancelled, its processes ended (the
+    items they run are dropped), without waiting for them to finish."""
+    terminate = getattr(pool, "terminate_workers", None)  # Python 3.14
+    if terminate is not None:
+        terminate()
+        return
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for process in processes:
+        process.terminate()
+    for process in processes:
+        process.join(5)
+
+
+def usable_cores() -> int:
+    """The cores this process may run on (its CPU affinity where the system has one).
+
+    Returns
+    -------
+    int
+        At least 1.
+
+    Examples
+    --------
+    >>> usable_cores() >= 1
+    True
+    """
+    if hasattr(os, "sched_getaffinity"):
+        return max(1, len(os.sched_getaffinity(0)))
+    return os.cpu_count() or 1
+
+
+def _worker_count(workers: int | None, pending: int) -> int:
+    """The local processes to run ``pending`` items on.
+
+    ``workers`` (default: every core) cut to the items and the cores; a
+    :class:`~cagekit.errors.CagekitWarning` when a number asked for is cut.
+
+    Raises
+    ------
+    InputError
+        ``workers`` below 1.
+    """
+    cpus = usable_cores()
+    if workers is None:
+        return max(1, min(cpus, pending))
+    asked = int(workers)
+    if asked < 1:
+        raise InputError(f"workers must be at least 1, got {workers}")
+    count = max(1, min(asked, pending, cpus))
+    if count < asked:
+        warnings.warn(f"{asked} workers asked for, {count} started ({pending} item(s) to "
+                      f"do, {cpus} core(s))", CagekitWarning, stacklevel=2)
+    return count
+
+
+def _cannot_start(workers: int, exc: OSError) -> InputError:
+    """The one-line error of worker processes that cannot be started."""
+    return InputError(f"cannot start {workers} worker processes ({one_line(exc)}); ask for "
+                      "fewer workers, or 1 to run the items in this process")
+
+
+def _starting(pool: cf.ProcessPoolExecutor, workers: int):
+    """``pool.submit`` with SIGINT held (:func:`_sigint_held`: the submit may start a
+    worker); a worker that cannot be started is an InputError (:func:`_cannot_start`)."""
+
+    def submit(fn, *args):
+        try:
+            with _sigint_held():
+                return pool.submit(fn, *args)
+        except OSError as exc:
+            raise _cannot_start(workers, exc) from None
+
+    return submit
 
 
 class _Runner:
     """Submits items, a bounded number at a time, and records each as it finishes."""
 
-    def __init__(self, items, todo, manifest, order, folder, method, seed, deformer,
+    def __init__(self, items, todo, manifest, cages, order, folder, method, seed, deformer,
                  max_nonaffinity, max_cd, drop_rejected, progress, coords):
         self.todo, self.manifest, self.order, self.folder = todo, manifest, order, folder
         self.method, self.seed, self.deformer = method, seed, deformer
@@ -503,44 +816,48 @@ class _Runner:
         self.max_nonaffinity, self.max_cd = max_nonaffinity, max_cd
         self.drop_rejected, self.progress = drop_rejected, progress
         self.total, self.finished = len(items), len(items) - len(todo)
-        self.cages = {}
-        for name, entry in manifest.cages.items():
-            path = os.path.join(folder, "cages", entry.get("file", ""))
-            if os.path.exists(path):
-                self.cages[name] = entry
+        self.cages = cages
+        self.relayed: set = set()
 
     def _cage_of(self, shape):
-        from cagekit.io import load_mesh
-
-        entry = self.cages.get(shape.name)
-        if self.method != "cage" or entry is None or entry["hash"] != shape.fingerprint:
-            return None
-        return load_mesh(os.path.join(self.folder, "cages", entry["file"]))
+        return self.cages.load(shape) if self.method == "cage" else None
 
     def _next(self, pending, fitting):
         """The first pending item whose source's cage is known or not being fitted."""
         for k, item in enumerate(pending):
             name = item.source.name
-            if self.method != "cage" or name in self.cages or name not in fitting:
+            if self.method != "cage" or self.cages.has(name) or name not in fitting:
                 return pending.pop(k)
         return None
 
     def run(self, executor, workers):
+        """Run the items to do: on ``executor``, else on a pool of ``workers`` processes
+        (:func:`_worker_count`), or in this process for one."""
         if self.progress is not None:
             self.progress(self.finished, self.total)
         if not self.todo:
             return
-        own = None
-        if executor is None:
-            workers = (os.cpu_count() or 1) if workers is None else int(workers)
-            if workers < 1:
-                raise InputError(f"workers must be at least 1, got {workers}")
-            if workers == 1:
-                for item in self.todo:
-                    self._record(item, deform_item(*self._args(item)))
-                return
-            executor = own = process_pool(workers)
-        window = 2 * (workers or 2)
+        if executor is not None:
+            self._loop(executor.submit, 2 * (workers or 2))
+            return
+        workers = _worker_count(workers, len(self.todo))
+        if workers == 1:
+            for item in self.todo:
+                self._record(item, deform_item(*self._args(item)))
+            return
+        try:
+            pool = process_pool(workers)
+        except OSError as exc:
+            raise _cannot_start(workers, exc) from None
+        try:
+            self._loop(_starting(pool, workers), 2 * workers)
+            pool.shutdown(wait=True)
+        except BaseException:  # Ctrl-C, an error: no worker outlives the batch
+            _stop_pool(pool)
+            raise
+
+    def _loop(self, submit, window):
+        """Submit items, ``window`` at most in flight, and record each as it finishes."""
         pending, fitting, running = list(self.todo), set(), {}
         try:
             while pending or running:
@@ -548,9 +865,9 @@ class _Runner:
                     item = self._next(pending, fitting)
                     if item is None:
                         break
-                    if self.method == "cage" and item.source.name not in self.cages:
+                    if self.method == "cage" and not self.cages.has(item.source.name):
                         fitting.add(item.source.name)
-                    running[executor.submit(deform_item, *self._args(item))] = item
+                    running[submit(deform_item, *self._args(item))] = item
                 done, _ = cf.wait(running, return_when=cf.FIRST_COMPLETED)
                 for future in done:
                     item = running.pop(future)
@@ -565,8 +882,14 @@ class _Runner:
         finally:
             for future in running:
                 future.cancel()
-            if own is not None:
-                own.shutdown(wait=False, cancel_futures=True)
+
+    def _relay(self, caught):
+        """Issue again, here, the warnings an item issued in its worker: each message once
+        a batch (each worker issues a library's one-time warnings once)."""
+        for message, category, filename, lineno in caught:
+            if (category, message) not in self.relayed:
+                self.relayed.add((category, message))
+                warnings.warn_explicit(message, category, filename, lineno)
 
     def _args(self, item):
         return (item.source.location, item.target.location, self.method, self.seed,
@@ -584,17 +907,15 @@ class _Runner:
                "source_hash": item.source.fingerprint, "target_hash": item.target.fingerprint}
         for name in _FIGURES:
             row[name] = result.get(name)
+        self._relay(result.get("warnings", ()))
         if result["status"] == "ok":
             row["status"] = _status(row, self.max_nonaffinity, self.max_cd)
             if row["status"] == "ok" or not self.drop_rejected:
                 folder = "variations" if row["status"] == "ok" else "rejected"
                 save_mesh(os.path.join(self.folder, folder, item.output),
                           result["vertices"], result["faces"])
-            if result.get("cage") is not None and item.source.name not in self.cages:
-                file = f"{item.source.stem}.obj"
-                save_mesh(os.path.join(self.folder, "cages", file), *result["cage"])
-                self.cages[item.source.name] = {"file": file, "hash": item.source.fingerprint}
-                self.manifest.cages[item.source.name] = self.cages[item.source.name]
+            if result.get("cage") is not None and not self.cages.has(item.source.name):
+                self.cages.save(item.source, result["cage"])
         self.manifest.rows[(item.source.name, item.target.name)] = row
         self.manifest.save(self.order)
         self.finished += 1

@@ -23,8 +23,9 @@ def connect(address: str, workers: int | None = None, setup=None):
     address : str
         ``"local"``, or a scheduler address such as ``tcp://10.0.0.5:8786``.
     workers : int, optional
-        Worker processes of a local cluster (one thread each); default 2. Ignored for a
-        running scheduler (its workers are what they are).
+        Worker processes of a local cluster (one thread each); default 2, never more than
+        the cores (a :class:`~cagekit.errors.CagekitWarning` says so when a number asked
+        for is cut). Ignored for a running scheduler (its workers are what they are).
     setup : callable, optional
         Run once in the main thread of every worker, today's and those that join later
         (a Dask worker plugin), for example :func:`cagekit.amplify.prepare_worker`.
@@ -57,7 +58,7 @@ def connect(address: str, workers: int | None = None, setup=None):
         # which made an item 12% slower; unset, it is the process pool's speed
         with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_":
                               None}):
-            cluster = LocalCluster(n_workers=int(workers or 2), threads_per_worker=1,
+            cluster = LocalCluster(n_workers=_local_workers(workers), threads_per_worker=1,
                                    processes=True, dashboard_address=None)
         client = Client(cluster)
     else:
@@ -69,6 +70,24 @@ def connect(address: str, workers: int | None = None, setup=None):
     if setup is not None:
         client.register_plugin(_Setup(setup))
     return client
+
+
+def _local_workers(workers: int | None) -> int:
+    """The worker processes of a local cluster: ``workers`` (default 2) cut to the cores,
+    with a :class:`~cagekit.errors.CagekitWarning` when a number asked for is cut."""
+    import warnings
+
+    from cagekit.amplify import usable_cores
+    from cagekit.errors import CagekitWarning
+
+    cores = usable_cores()
+    if workers is None:
+        return min(2, cores)
+    count = max(1, min(int(workers), cores))
+    if count < int(workers):
+        warnings.warn(f"{workers} workers asked for, {count} started ({cores} core(s))",
+                      CagekitWarning, stacklevel=3)
+    return count
 
 
 def _Setup(function):

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -17,7 +18,7 @@ import numpy as np
 from cagekit.errors import InputError
 from cagekit.io import SUPPORTED_MESH_EXTENSIONS, load_mesh
 
-__all__ = ["SYNTHETIC_PREFIX", "Shape", "find_shapes", "load_shape_of"]
+__all__ = ["SYNTHETIC_PREFIX", "Shape", "file_hash", "find_shapes", "load_shape_of"]
 
 #: a collection spec ``synthetic:<family>:<count>`` names procedural shapes
 #: (:data:`cagekit.datasets.synthetic.FAMILIES`, seeds 0 to count - 1)
@@ -52,7 +53,23 @@ class Shape:
         return self.name.replace("/", "-")
 
 
-def _file_hash(path: str) -> str:
+def file_hash(path: str | os.PathLike) -> str:
+    """SHA-256 of a file's bytes, in hex (a :attr:`Shape.fingerprint`).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+
+    Returns
+    -------
+    str
+        64 hex digits.
+
+    Raises
+    ------
+    OSError
+        The file cannot be read.
+    """
     digest = hashlib.sha256()
     with open(path, "rb") as fh:
         for block in iter(lambda: fh.read(1 << 20), b""):
@@ -75,7 +92,7 @@ def _synthetic(spec: str) -> list[Shape]:
             for i in range(count)]
 
 
-def find_shapes(collection: str) -> list[Shape]:
+def find_shapes(collection: str, exclude: Iterable[str | os.PathLike] = ()) -> list[Shape]:
     """The shapes of a collection, sorted by name.
 
     Parameters
@@ -84,6 +101,8 @@ def find_shapes(collection: str) -> list[Shape]:
         A folder, searched recursively for mesh files
         (:data:`cagekit.io.SUPPORTED_MESH_EXTENSIONS`; hidden files and folders skipped;
         ShapeNet's ``<synset>/<id>/model.obj`` works), or ``synthetic:<family>:<count>``.
+    exclude : iterable of str or os.PathLike, optional
+        Folders not searched (a batch's output folder, say), wherever they lie.
 
     Returns
     -------
@@ -106,9 +125,11 @@ def find_shapes(collection: str) -> list[Shape]:
     if not os.path.isdir(root):
         raise InputError("not a folder (a collection is a folder of meshes or "
                          "synthetic:<family>:<count>)", collection)
+    skipped = {os.path.realpath(path) for path in exclude}
     shapes = []
     for folder, dirs, files in os.walk(root):
-        dirs[:] = sorted(d for d in dirs if not d.startswith("."))
+        dirs[:] = sorted(d for d in dirs if not d.startswith(".")
+                         and os.path.realpath(os.path.join(folder, d)) not in skipped)
         for file in sorted(files):
             stem, ext = os.path.splitext(file)
             if file.startswith(".") or ext.lower() not in SUPPORTED_MESH_EXTENSIONS:
@@ -118,7 +139,7 @@ def find_shapes(collection: str) -> list[Shape]:
             category = os.path.dirname(rel).split(os.sep)[0] if os.sep in rel else ""
             name = os.path.splitext(rel)[0].replace(os.sep, "/")
             try:
-                fingerprint = _file_hash(path)
+                fingerprint = file_hash(path)
             except OSError as exc:
                 fingerprint = f"unreadable: {exc.strerror or exc}"
             shapes.append(Shape(name, path, category, fingerprint))

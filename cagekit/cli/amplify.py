@@ -34,7 +34,7 @@ def _pairs_option(ctx, param, value):
 @click.command(short_help="Variations of a collection of shapes (stock amplification).")
 @click.argument("collection", metavar="COLLECTION")
 @click.option("-o", "--output", "out", required=True, type=click.Path(file_okay=False),
-              help="Output folder (created; a rerun into it resumes).")
+              help="Output folder, outside COLLECTION (created; a rerun into it resumes).")
 @click.option("--variations", type=click.IntRange(min=1), default=None,
               help="Number of random (source, target) pairs, drawn with --seed.")
 @click.option("--pairs", default=None, callback=_pairs_option, metavar="FILE|all",
@@ -54,7 +54,8 @@ def _pairs_option(ctx, param, value):
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
               help="Seed of the pairs and of every item.")
 @click.option("--workers", type=click.IntRange(min=1), default=None,
-              help="Local worker processes [default: every core].")
+              help="Local worker processes, never more than the items to do or the cores "
+                   "(a note says so) [default: every core].")
 @click.option("--cluster", default=None, metavar="ADDRESS|local",
               help="Run on a Dask cluster (scheduler address, or 'local' for a local one "
                    "of --workers processes); needs pip install -e '.[cluster]'.")
