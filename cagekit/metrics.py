@@ -428,8 +428,12 @@ def conformal_distortion(V_src: ArrayLike, F_src: ArrayLike, V_out: ArrayLike) -
     with np.errstate(divide="ignore"):
         ratio = np.where(sigma[:, 1] > 0, sigma[:, 0] / np.where(sigma[:, 1] > 0,
                                                                  sigma[:, 1], 1.0), np.inf)
+    # collapsed faces (inf) stand in as the largest float for the quantile, whose linear
+    # interpolation would make inf - inf = NaN of them
+    big = np.finfo(np.float64).max
+    p95 = float(np.quantile(np.minimum(ratio, big), 0.95))
     return {"mean": float(np.sum(area * ratio) / area.sum()),
-            "p95": float(np.quantile(ratio, 0.95)), "max": float(ratio.max())}
+            "p95": p95 if p95 < big else np.inf, "max": float(ratio.max())}
 
 
 def symmetry_error(V_src: ArrayLike, V_out: ArrayLike,

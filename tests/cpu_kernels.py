@@ -65,10 +65,11 @@ def kernels() -> dict[str, object]:
         capability or None), and ``emulation`` (the variables of
         :data:`EMULATION_VARIABLES` that are set, with their values).
     """
+    import llvmlite.binding
     import numba
     return {
         "cpu": cpu_name(),
-        "numba": numba.config.CPU_NAME or "host",
+        "numba": numba.config.CPU_NAME or f"{llvmlite.binding.get_host_cpu_name()} (this CPU)",
         "numpy": numpy_simd(),
         "openblas": openblas_cores(),
         "torch": torch_capability(),
