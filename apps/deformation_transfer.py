@@ -39,7 +39,7 @@ from cagekit.surface_binding import SurfaceBinding, bind_surface, check_coupling
 
 __all__ = ["CharacterCage", "fit_character", "corresponds", "check_model",
            "template_cage_classical", "classical_fitter", "template_cage_learned",
-           "transfer", "render_grid", "SMOOTHNESS"]
+           "transfer", "cage_oracle", "render_grid", "SMOOTHNESS"]
 
 #: weight of the cage-Laplacian term of the classical template fit (the cage's own units)
 SMOOTHNESS = 1e-2
@@ -327,6 +327,51 @@ def transfer(character: CharacterCage, deformed_template_cage_v,
     if not np.isfinite(X).all():
         raise FloatingPointError("the transfer produced NaN or inf positions")
     return X
+
+
+def cage_oracle(weights, truth_v) -> tuple[np.ndarray, np.ndarray]:
+    """The best a cage can do: its least-squares motion onto a known result (the oracle).
+
+    A transfer rule moves the character's cage; no rule can do better than the cage
+    position whose coordinates reproduce the truth (the character posed by its own rig)
+    most closely. Reported beside every rule, it separates the error the rule causes from
+    the error the cage itself cannot avoid (DESIGN.md, "Transfer metric").
+
+    Parameters
+    ----------
+    weights : (n, k) array_like of float
+        The character's coordinates in its cage (mean value coordinates: the deformation
+        is ``weights @ cage_v``), e.g. ``CharacterCage.binding.weights``.
+    truth_v : (n, 3) array_like of float
+        The true posed character, same vertices and order.
+
+    Returns
+    -------
+    cage_v : (k, 3) float64
+        The least-squares best cage (minimum-norm where the weights leave it free).
+    vertices : (n, 3) float64
+        ``weights @ cage_v``: the closest the cage can bring the character to the truth.
+
+    Examples
+    --------
+    >>> from cagekit.coords import bind
+    >>> from cagekit.shapes import box_cage
+    >>> cage_v, cage_f = box_cage()
+    >>> points = np.array([[0.1, 0.2, 0.3], [-0.5, 0.0, 0.4], [0.0, -0.6, 0.0]])
+    >>> W = bind(points, cage_v, cage_f).weights
+    >>> _, best = cage_oracle(W, points * 2.0)  # a scaling the cage makes exactly
+    >>> bool(np.abs(best - points * 2.0).max() < 1e-9)
+    True
+    """
+    W = np.asarray(weights, dtype=np.float64)
+    truth = np.asarray(truth_v, dtype=np.float64)
+    if W.ndim != 2 or truth.shape != (W.shape[0], 3):
+        raise InputError(f"cage_oracle needs (n, k) weights and (n, 3) truth, got "
+                         f"{W.shape} and {truth.shape}")
+    if not (np.isfinite(W).all() and np.isfinite(truth).all()):
+        raise InputError("cage_oracle: the weights or the truth hold NaN or inf")
+    cage_v = np.linalg.lstsq(W, truth, rcond=None)[0]
+    return cage_v, W @ cage_v
 
 
 def render_grid(path, rows, titles=None, labels=None, panel=(240, 300)) -> None:

@@ -146,7 +146,7 @@ def posed_cage(rig, cage_v, cage_f, pose, neighbours: int = 8) -> np.ndarray:
 
 def write(out_dir, *, poses: int = 20, train_poses: int = 1000, seed: int = 0,
           landmarks: int = 100, cage: str = "artist", cage_faces: int = 196,
-          resolution: float = 1.0, bodies=humanoid.NOVEL_BODIES,
+          resolution: float = 1.0, bodies=(*humanoid.NOVEL_BODIES, *humanoid.UNLIKE_BODIES),
           novel=tuple(characters.CHARACTERS), reverse: bool = True) -> dict:
     """Write the data set described in the module docstring.
 

@@ -50,12 +50,16 @@ from apps import deformation_transfer as dt  # noqa: E402
 from apps import humanoid_data  # noqa: E402
 from cagekit import io  # noqa: E402
 from cagekit.cage import unique_edges  # noqa: E402
+from cagekit.datasets import characters, humanoid  # noqa: E402
 from cagekit.errors import CageFitError  # noqa: E402
 from cagekit.frame import normalize  # noqa: E402
 from cagekit.landmarks import load_landmarks  # noqa: E402
 from cagekit.metrics import dcotlap  # noqa: E402
 
-METHODS = ("rest", "nearest", "offsets", "unrefined", "pose", "learned")
+METHODS = ("rest", "nearest", "offsets", "unrefined", "pose", "learned", "oracle")
+#: the groups of characters, in the order of the report
+GROUPS = ("same rest pose", "unlike proportions", "own rest pose",
+          "unlike proportions, own rest pose")
 #: today's classical error on the bodies sharing the template's rest pose (issue 6)
 SAME_POSE_BASELINE = 2.193
 
@@ -85,14 +89,36 @@ def torn_share(rest_v, faces, out_v) -> float:
     return float(np.mean((now > 4 * rest) & (now > 0.02 * height))) if len(E) else 0.0
 
 
-def scores(rest_v, faces, truth_v, out_v) -> dict:
-    """Vertex error / height in %: mean, 99th percentile and largest (the mean does not
-    see a hand torn off, the largest does); dCotLap x1e3; torn edges in per mille."""
+#: body regions by the words of the landmark labels nearest each vertex (else torso)
+REGION_WORDS = {"arms": ("arm", "hand", "palm", "knuckle", "thumb", "index", "middle", "ring",
+                         "pinky"),
+                "legs": ("thigh", "shin", "knee", "ankle", "heel", "foot", "sole", "toe"),
+                "head": ("head", "chin", "ear", "eye", "nose", "mouth", "neck")}
+REGIONS = (*REGION_WORDS, "torso")
+
+
+def regions(vertices, marks) -> dict:
+    """Each region's vertices (boolean masks): the region of the nearest landmark."""
+    labels = list(marks)
+    nearest = cKDTree(np.array([marks[k] for k in labels])).query(vertices)[1]
+    of_label = np.array([next((r for r, words in REGION_WORDS.items()
+                               if any(w in k.lower() for w in words)), "torso")
+                         for k in labels])
+    return {r: of_label[nearest] == r for r in REGIONS}
+
+
+def scores(rest_v, faces, truth_v, out_v, parts=None) -> dict:
+    """Vertex error / height in %: mean, 95th and 99th percentile and largest (the mean does
+    not see a hand torn off, the largest does), mean per region (``parts``, from
+    :func:`regions`); dCotLap x1e3; torn edges in per mille."""
     height = float(np.ptp(rest_v[:, 1]))
     err = np.linalg.norm(out_v - truth_v, axis=1) / height * 100
     src_n = normalize(rest_v)[0]
     _, c, s = normalize(truth_v)
-    return {"error_pct": float(err.mean()), "p99_pct": float(np.quantile(err, 0.99)),
+    per_region = {f"{r}_pct": float(err[mask].mean()) if mask.any() else float("nan")
+                  for r, mask in (parts or {}).items()}
+    return {"error_pct": float(err.mean()), "p95_pct": float(np.quantile(err, 0.95)),
+            "p99_pct": float(np.quantile(err, 0.99)), **per_region,
             "max_pct": float(err.max()),
             "dcotlap_x1e3": dcotlap(src_n, faces, (out_v - c) / s) * 1e3,
             "torn_permille": 1e3 * torn_share(rest_v, faces, out_v)}
@@ -135,6 +161,7 @@ def run_direction(name, group, direction, template, cage, marks_t, character, ma
     (Vt, _), (cage_v, cage_f), (Vc, Fc) = template, cage, character
     char = dt.fit_character(Vt, cage_v, cage_f, marks_t, Vc, Fc, marks_c)
     height = float(np.ptp(Vc[:, 1]))
+    parts = regions(Vc, marks_c)
     rows, shown = [], []
     for i, ((Vp, Fp), truth, cages) in enumerate(zip(examples, truths, deformed)):
         outs, seconds = {"rest": Vc}, {"rest": 0.0}
@@ -150,9 +177,11 @@ def run_direction(name, group, direction, template, cage, marks_t, character, ma
             t0 = time.perf_counter()
             outs["learned"] = dt.transfer(char, cages["learned"], "pose")
             seconds["learned"] = cages["learned_seconds"] + time.perf_counter() - t0
+        # the best the character's cage can do (knows the truth): what no rule can beat
+        outs["oracle"], seconds["oracle"] = dt.cage_oracle(char.binding.weights, truth)[1], 0.0
         for method, X in outs.items():
             rows.append({"character": name, "group": group, "direction": direction,
-                         "example": i, "method": method, **scores(Vc, Fc, truth, X),
+                         "example": i, "method": method, **scores(Vc, Fc, truth, X, parts),
                          "seconds": seconds[method]})
         if i < 5:
             shown.append({"example": (Vp, Fp), "truth": (truth, Fc),
@@ -225,8 +254,10 @@ def main(argv=None) -> dict:
                                  template_cages(posed, posed_cage, [template], None,
                                                 args.seed)))
     rows, fits, pictures = [], {}, {}
-    groups = [(b, "same rest pose") for b in manifest["bodies"]]
-    groups += [(c, "own rest pose") for c in manifest.get("characters", [])]
+    groups = [(b, "unlike proportions" if b in humanoid.UNLIKE_BODIES else "same rest pose")
+              for b in manifest["bodies"]]
+    groups += [(c, "unlike proportions, own rest pose" if c in characters.UNLIKE_CHARACTERS
+                else "own rest pose") for c in manifest.get("characters", [])]
     for name, group in groups:
         character, marks_c = load_character(data, name)
         truths = [io.load_mesh(data / "truth" / name / p.name)[0] for p in pose_paths]
@@ -242,7 +273,7 @@ def main(argv=None) -> dict:
         fits[(name, "forward")] = fit
         pictures[name] = shown
         print(f"{name}: forward done (cage fit {fit['seconds']:.2f} s)", flush=True)
-        if group == "same rest pose":
+        if not group.endswith("own rest pose"):
             continue
         t_pose = io.load_mesh(data / "truth" / name / "t_pose.obj")[0]
         for i, (posed, posed_cage, marks_p, cages) in enumerate(reverse_examples):
@@ -289,7 +320,7 @@ def report(rows, fits, manifest, poses, reverse, learned) -> None:
           f"{manifest['landmarks']} landmark labels, {poses} forward and {reverse} reverse "
           "examples")
     for direction in ("forward", "reverse"):
-        for group in ("same rest pose", "own rest pose"):
+        for group in GROUPS:
             sel = [r for r in rows if r["direction"] == direction and r["group"] == group]
             if not sel:
                 continue
@@ -306,6 +337,12 @@ def report(rows, fits, manifest, poses, reverse, learned) -> None:
                     d = mean(rows, "dcotlap_x1e3", method=m, **where)
                     cells.append("n/a" if np.isnan(e) else f"{e:.2f} ({d:.3f})")
                 print(f"{name:<12} " + " ".join(f"{c:>16}" for c in cells))
+            print(f"{direction}, {group}: 95th percentile of the error % height, and the mean "
+                  "per region (arms / legs / torso / head), mean over examples")
+            _per_character(rows, names, methods, direction, group,
+                           lambda sel: f"{np.mean([r['p95_pct'] for r in sel]):.1f} "
+                           + "/".join(f"{np.nanmean([r.get(f'{g}_pct', np.nan) for r in sel]):.1f}"
+                                      for g in ("arms", "legs", "torso", "head")))
             print(f"{direction}, {group}: worst vertices, error % height: 99th percentile "
                   "(largest), the largest over examples")
             _per_character(rows, names, methods, direction, group,
@@ -345,7 +382,7 @@ def _per_character(rows, names, methods, direction, group, cell) -> None:
 
 
 def targets(rows, fits, groups) -> dict:
-    differ = [n for n, g in groups if g == "own rest pose" and n != "t_pose"]
+    differ = [n for n, g in groups if g != "same rest pose" and n != "t_pose"]
     same = [n for n, g in groups if g == "same rest pose"]
     ratios, worst = {}, {}
     for name in differ:

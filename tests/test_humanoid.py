@@ -119,7 +119,8 @@ def test_frame_height_and_ground(rigs):
         assert V[:, 1].max() == pytest.approx(BODY_SHAPES[name].height, abs=1e-9)
         lm = {k: V[i] for k, i in r.landmarks.items()}
         assert lm["nose_tip"][2] > lm["head_back"][2]  # faces +z
-        assert lm["l_hand_tip"][0] > 0.6 and lm["r_hand_tip"][0] < -0.6  # T-pose along x
+        reach = 0.3 * BODY_SHAPES[name].height  # T-pose along x (a child's arms: 0.39 h)
+        assert lm["l_hand_tip"][0] > reach and lm["r_hand_tip"][0] < -reach
         assert abs(lm["l_hand_tip"][1] - r.joints[JOINTS.index("l_shoulder")][1]) < 0.05
         assert lm["l_toe"][2] > lm["l_heel"][2]
     assert rigs["template"].vertices[:, 1].max() == pytest.approx(1.75)
@@ -399,3 +400,29 @@ def test_landmarks_follow_the_pose(rigs):
         i = r.landmarks["l_forearm_mid_front"]
         assert np.array_equal(P[i], r.pose(pose)[i])
         assert not np.allclose(P[i], r.vertices[i])
+
+
+def _proportions(body):
+    """Shoulder width, leg length (hip to ankle), arm length and head height over height."""
+    r = rig(body, resolution=0.5)
+    J = {name: r.joints[i] for i, name in enumerate(JOINTS)}
+    height = r.vertices[:, 1].max()
+    return {"shoulders": np.linalg.norm(J["l_shoulder"] - J["r_shoulder"]) / height,
+            "legs": (J["l_hip"][1] - J["l_ankle"][1]) / height,
+            "arms": np.linalg.norm(J["l_shoulder"] - J["l_wrist"]) / height,
+            "head": (height - J["neck"][1]) / height}
+
+
+@pytest.mark.parametrize("body, expected", [
+    ("brute", {"shoulders": (1.6, 2.0), "legs": (0.5, 0.7)}),
+    ("child", {"head": (1.5, 2.2), "arms": (0.6, 0.7), "legs": (0.6, 0.75)}),
+    ("tall_thin", {"arms": (1.25, 1.4), "legs": (1.1, 1.3)}),
+    ("long_torso", {"arms": (0.6, 0.8), "legs": (0.6, 0.8)}),
+])
+def test_unlike_bodies_have_the_proportions_they_claim(body, expected):
+    from cagekit.datasets.humanoid import UNLIKE_BODIES
+
+    assert body in UNLIKE_BODIES and not set(UNLIKE_BODIES) & set(NOVEL_BODIES)
+    mine, template = _proportions(body), _proportions("template")
+    for name, (low, high) in expected.items():
+        assert low <= mine[name] / template[name] <= high, (name, mine[name] / template[name])

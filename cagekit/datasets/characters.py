@@ -38,8 +38,8 @@ import numpy as np
 from cagekit.datasets import humanoid
 from cagekit.landmarks import SurfacePoint
 
-__all__ = ["CHARACTERS", "FINGERS", "MISSING", "MISSPELT", "Character", "character",
-           "rest_pose", "surface_landmarks"]
+__all__ = ["CHARACTERS", "UNLIKE_CHARACTERS", "FINGERS", "MISSING", "MISSPELT", "Character",
+           "character", "rest_pose", "surface_landmarks"]
 
 #: the rig's finger names (joints ``{side}_{finger}{1,2,3}``)
 FINGERS = ("thumb", "index", "middle", "ring", "pinky")
@@ -98,7 +98,18 @@ CHARACTERS: dict[str, tuple] = {
                                                 "elbows": 15}, "remeshed"),
     "robot_boxes": ("robot", 1.0, {"arms": -37, "legs": 4}, "boxes"),
     "arms_down": ("stocky", 0.9, {"arms": -76}, "remeshed"),
+    # proportions far from the template's (humanoid.UNLIKE_BODIES) and rest poses of their
+    # own: what went wrong on a real bulky robot with arms 37 degrees down (issue 30)
+    "brute_arms_down": ("brute", 0.9, {"arms": -37, "legs": 4}, "remeshed"),
+    "child_a_pose": ("child", 0.9, {"arms": -45, "legs": 5}, "remeshed"),
+    "tall_thin_wide": ("tall_thin", 0.8, {"arms": 20, "legs": 8}, "remeshed"),
+    "long_torso_relaxed": ("long_torso", 0.9, {"arms": -55, "legs": 6, "turn": 8,
+                                                "elbows": 15}, "remeshed"),
 }
+
+#: the characters of :data:`CHARACTERS` whose proportions are far from the template's
+UNLIKE_CHARACTERS: tuple[str, ...] = ("brute_arms_down", "child_a_pose", "tall_thin_wide",
+                                      "long_torso_relaxed")
 
 
 @dataclass

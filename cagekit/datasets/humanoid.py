@@ -35,8 +35,8 @@ from functools import lru_cache
 
 import numpy as np
 
-__all__ = ["BODY_SHAPES", "JOINTS", "LANDMARK_NAMES", "NOVEL_BODIES", "PARENTS", "BodyShape",
-           "Rig", "humanoid", "random_body", "random_pose", "rig", "rotation_matrix"]
+__all__ = ["BODY_SHAPES", "JOINTS", "LANDMARK_NAMES", "NOVEL_BODIES", "UNLIKE_BODIES", "PARENTS",
+           "BodyShape", "Rig", "humanoid", "random_body", "random_pose", "rig", "rotation_matrix"]
 
 _Mesh = tuple[np.ndarray, np.ndarray]
 
@@ -174,11 +174,40 @@ BODY_SHAPES: dict[str, BodyShape] = {
                        shoulder_width=0.26, hip_width=0.115, chest_width=0.125,
                        waist_width=0.11, torso_depth=0.66, limb_thickness=1.15,
                        head_size=1.05, squareness=0.85),
+    # proportions far from the template's (issue 30): what a template cage's stretch and
+    # shear of its own shoulders and armpits would ruin
+    "brute": BodyShape(height=1.9, leg_ratio=0.27, torso_ratio=0.50, neck_ratio=0.03,
+                       head_ratio=0.09, arm_ratio=0.33, forearm_share=0.47, hand_ratio=0.11,
+                       foot_ratio=0.14, shoulder_width=0.40, hip_width=0.26,
+                       chest_width=0.19, waist_width=0.15, torso_depth=0.68,
+                       limb_thickness=2.5, head_size=0.75, squareness=0.6),
+    "child": BodyShape(height=1.10, leg_ratio=0.33, torso_ratio=0.38, neck_ratio=0.03,
+                       head_ratio=0.24, arm_ratio=0.22, hand_ratio=0.075, foot_ratio=0.11,
+                       shoulder_width=0.19, hip_width=0.10, chest_width=0.10,
+                       waist_width=0.095, torso_depth=0.75, limb_thickness=1.1,
+                       head_size=1.7),
+    "tall_thin": BodyShape(height=2.1, leg_ratio=0.60, torso_ratio=0.27, neck_ratio=0.05,
+                           head_ratio=0.09, arm_ratio=0.43, hand_ratio=0.12,
+                           shoulder_width=0.18, hip_width=0.08, chest_width=0.075,
+                           waist_width=0.06, torso_depth=0.6, limb_thickness=0.6,
+                           head_size=0.85),
+    "long_torso": BodyShape(height=1.7, leg_ratio=0.38, torso_ratio=0.46, neck_ratio=0.04,
+                            head_ratio=0.12, arm_ratio=0.24, forearm_share=0.46,
+                            hand_ratio=0.09, shoulder_width=0.22, hip_width=0.11,
+                            chest_width=0.11, waist_width=0.095),
 }
-"""Named body shapes: the template and three clearly different novel ones."""
+"""Named body shapes: the template, three novel ones of roughly its proportions and four far
+from them (:data:`UNLIKE_BODIES`)."""
 
 NOVEL_BODIES: tuple[str, ...] = ("skinny", "stocky", "robot")
-"""Bodies to transfer poses onto (see :data:`BODY_SHAPES`)."""
+"""Bodies to transfer poses onto (see :data:`BODY_SHAPES`), of roughly the template's
+proportions."""
+
+UNLIKE_BODIES: tuple[str, ...] = ("brute", "child", "tall_thin", "long_torso")
+"""Bodies whose proportions are far from the template's, each posed by its own skeleton: a
+brute (shoulders 1.8x as wide, chest 2x as deep, limbs 2.5x as thick, legs 0.6x as long,
+a small head), a child (head 1.8x, limbs 0.65x), a tall thin one (limbs 1.3x, narrow
+torso) and one with a long torso and short arms."""
 
 _BODY_RANGES = {
     "height": (1.50, 1.95), "leg_ratio": (0.44, 0.53), "torso_ratio": (0.30, 0.35),
