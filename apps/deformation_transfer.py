@@ -37,7 +37,7 @@ from cagekit.geometry import as_vertices, cotangent_laplacian
 from cagekit.landmarks import LandmarkMatch, match_landmarks
 from cagekit.surface_binding import SurfaceBinding, bind_surface, check_coupling
 
-__all__ = ["CharacterCage", "fit_character", "corresponds", "check_model",
+__all__ = ["CharacterCage", "fit_character", "check_landmarks_on_mesh", "corresponds", "check_model",
            "template_cage_classical", "classical_fitter", "template_cage_learned",
            "transfer", "cage_oracle", "render_grid", "SMOOTHNESS"]
 
@@ -45,6 +45,9 @@ __all__ = ["CharacterCage", "fit_character", "corresponds", "check_model",
 SMOOTHNESS = 1e-2
 #: L-BFGS evaluations of the Chamfer template fit (poses need more than the default 60)
 TEMPLATE_EVALUATIONS = 200
+#: largest median distance of a mesh's landmarks from its vertices, in its bounding-box
+#: diagonals: landmarks farther off were given in another frame or unit than the mesh
+LANDMARK_OFFSET = 0.1
 
 
 @dataclass
@@ -124,6 +127,9 @@ def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
                             source_name=template_name, target_name=character_name)
     cage_v = as_vertices(cage_v, "cage_v")  # checked by the fit
     character_v = as_vertices(character_v, "character_v")
+    check_landmarks_on_mesh(as_vertices(template_v, "template_v"), match.source,
+                            template_name or "the template")
+    check_landmarks_on_mesh(character_v, match.target, character_name or "the character")
     names = f"{template_name or 'the template'} and {character_name or 'the character'}"
     if align == "box":
         try:
@@ -149,6 +155,44 @@ def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
     return CharacterCage(vertices=character_v, faces=np.asarray(character_f, np.int64),
                          template_cage_v=cage_v, cage_v=fit.cage_v, cage_f=fit.cage_f,
                          fit=fit, match=match, binding=binding)
+
+
+def check_landmarks_on_mesh(vertices, landmarks, name: str) -> None:
+    """Refuse landmarks that lie far from their mesh (another frame or unit than it).
+
+    Parameters
+    ----------
+    vertices : (n, 3) float64
+        The mesh (or point cloud) the landmarks were picked on.
+    landmarks : (l, 3) array_like of float
+        Their positions.
+    name : str
+        The mesh's name (its file), put in front of the message.
+
+    Raises
+    ------
+    InputError
+        The median distance from a landmark to the nearest vertex exceeds
+        :data:`LANDMARK_OFFSET` bounding-box diagonals of the mesh.
+
+    Examples
+    --------
+    >>> V = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
+    >>> check_landmarks_on_mesh(V, V[:3] + 0.01, "tet.obj")
+    >>> check_landmarks_on_mesh(V, V[:3] + 5.0, "tet.obj")
+    Traceback (most recent call last):
+    ...
+    cagekit.errors.InputError: tet.obj: its landmarks lie far from its mesh (median 5 ...
+    """
+    from scipy.spatial import cKDTree
+
+    diagonal = float(np.linalg.norm(np.ptp(vertices, axis=0)))
+    distance = cKDTree(vertices).query(np.asarray(landmarks, dtype=np.float64))[0]
+    offset = float(np.median(distance)) / diagonal if diagonal > 0 else 0.0
+    if offset > LANDMARK_OFFSET:
+        raise InputError(f"its landmarks lie far from its mesh (median {offset:.3g} of its "
+                         f"bounding-box diagonal, at most {LANDMARK_OFFSET} expected): given "
+                         "in another frame or unit than the mesh?", name)
 
 
 def corresponds(template, pose) -> bool:

@@ -285,6 +285,24 @@ def test_too_few_matching_landmarks_is_one_clear_line(data, tmp_path):
     assert not (tmp_path / "res").exists()
 
 
+def test_landmarks_in_another_frame_than_their_mesh_are_refused_saying_so(data, tmp_path):
+    # a landmark file given in another frame (moved 1.2 diagonals off the character) used to
+    # fail the cage fit with "labels swapped?"; it is refused before the fit, saying why
+    out, _ = data
+    marks = load_landmarks(out / "characters" / "stocky_landmarks.json")
+    V, _ = io.load_mesh(out / "characters" / "stocky.obj")
+    shift = 1.2 * np.linalg.norm(np.ptp(V, axis=0))
+    save_landmarks(tmp_path / "moved.json", {k: v + [shift, 0, 0] for k, v in marks.items()})
+    inputs = _inputs(out)
+    inputs[4] = tmp_path / "moved.json"
+    result = _run([*inputs, out / "poses", "-o", tmp_path / "res"])
+    assert result.exit_code == 2, result.output
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "moved.json" in lines[0], lines
+    assert "far from its mesh" in lines[0] and "another frame" in lines[0]
+    assert "swapped" not in lines[0] and not (tmp_path / "res").exists()
+
+
 @pytest.mark.parametrize("content, problem", [
     ("1\nPicked 0 0.1 0.2 0.7 nose 0 0\n", "column"),
     ("3\nPicked 0 0.1 0.2 0.7 nose 0 0 0\n", "3 landmarks but 1"),
