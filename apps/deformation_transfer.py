@@ -37,8 +37,8 @@ from cagekit.geometry import as_vertices, cotangent_laplacian
 from cagekit.landmarks import LandmarkMatch, match_landmarks
 from cagekit.surface_binding import SurfaceBinding, bind_surface, check_coupling
 
-__all__ = ["CharacterCage", "fit_character", "check_landmarks_on_mesh", "corresponds", "check_model",
-           "template_cage_classical", "classical_fitter", "template_cage_learned",
+__all__ = ["CharacterCage", "fit_character", "check_landmarks_on_mesh", "corresponds",
+           "check_model", "template_cage_classical", "classical_fitter", "template_cage_learned",
            "transfer", "cage_oracle", "render_grid", "SMOOTHNESS"]
 
 #: weight of the cage-Laplacian term of the classical template fit (the cage's own units)
