@@ -40,7 +40,7 @@ from cagekit.files import atomic_output, one_line, read_text
 
 __all__ = ["COLUMNS", "COORDS", "MAX_CD", "MAX_NONAFFINITY", "METHODS", "SHEET_COLUMNS", "Item",
            "amplify", "contact_sheet", "deform_item", "plan_pairs", "prepare_worker",
-           "process_pool", "usable_cores"]
+           "process_pool", "usable_cores", "worker_count"]
 
 METHODS = ("cage", "scale", "model")
 #: the coordinates of method cage (:data:`cagekit.deformation.COORDS`)
@@ -420,6 +420,7 @@ class _Cages:
     def __init__(self, folder, shapes, manifest):
         self.folder, self.manifest = folder, manifest
         self.files = _cage_files(shapes)
+        self._loaded = {}  # source name -> its cage, read once a run
         hashes = {shape.name: shape.fingerprint for shape in shapes}
         manifest.cages = {name: entry for name, entry in manifest.cages.items()
                           if self._valid(entry, self.files.get(name), hashes.get(name))}
@@ -446,10 +447,12 @@ class _Cages:
         None when it has none to reuse."""
         from cagekit.io import load_mesh
 
-        entry = self.manifest.cages.get(shape.name)
-        if entry is None or entry["hash"] != shape.fingerprint:
+        entry = self.manifest.cages.get(shape.name)  # kept only for this very source
+        if entry is None:
             return None
-        return load_mesh(self._path(entry["file"]))
+        if shape.name not in self._loaded:
+            self._loaded[shape.name] = load_mesh(self._path(entry["file"]))
+        return self._loaded[shape.name]
 
     def save(self, shape, cage) -> None:
         """Write the cage fitted to ``shape`` (atomically) and record it; the manifest is
@@ -761,27 +764,47 @@ def usable_cores() -> int:
     return os.cpu_count() or 1
 
 
-def _worker_count(workers: int | None, pending: int) -> int:
-    """The local processes to run ``pending`` items on.
+def worker_count(workers: int | None, pending: int | None = None,
+                 default: int | None = None) -> int:
+    """The local worker processes to start: a pool's or a local Dask cluster's.
 
-    ``workers`` (default: every core) cut to the items and the cores; a
-    :class:`~cagekit.errors.CagekitWarning` when a number asked for is cut.
+    Parameters
+    ----------
+    workers : int or None
+        Asked for; None takes ``default``.
+    pending : int, optional
+        Items to do: no more workers than that.
+    default : int, optional
+        Workers when none are asked for (None: every core).
+
+    Returns
+    -------
+    int
+        ``workers`` cut to the cores (and ``pending``), at least 1; a
+        :class:`~cagekit.errors.CagekitWarning` when a number asked for is cut.
 
     Raises
     ------
     InputError
         ``workers`` below 1.
+
+    Examples
+    --------
+    >>> worker_count(None, pending=1)
+    1
     """
     cpus = usable_cores()
+    limit = cpus if pending is None else min(cpus, pending)
     if workers is None:
-        return max(1, min(cpus, pending))
+        return max(1, min(limit, cpus if default is None else default))
     asked = int(workers)
     if asked < 1:
         raise InputError(f"workers must be at least 1, got {workers}")
-    count = max(1, min(asked, pending, cpus))
+    count = max(1, min(asked, limit))
     if count < asked:
-        warnings.warn(f"{asked} workers asked for, {count} started ({pending} item(s) to "
-                      f"do, {cpus} core(s))", CagekitWarning, stacklevel=2)
+        todo = "" if pending is None else f"{pending} item(s) to do, "
+        warnings.warn(f"{asked} workers asked for, {count} started ({todo}{cpus} core(s))",
+                      CagekitWarning, stacklevel=3)
     return count
 
 
@@ -832,7 +855,7 @@ class _Runner:
 
     def run(self, executor, workers):
         """Run the items to do: on ``executor``, else on a pool of ``workers`` processes
-        (:func:`_worker_count`), or in this process for one."""
+        (:func:`worker_count`), or in this process for one."""
         if self.progress is not None:
             self.progress(self.finished, self.total)
         if not self.todo:
@@ -840,7 +863,7 @@ class _Runner:
         if executor is not None:
             self._loop(executor.submit, 2 * (workers or 2))
             return
-        workers = _worker_count(workers, len(self.todo))
+        workers = worker_count(workers, len(self.todo))
         if workers == 1:
             for item in self.todo:
                 self._record(item, deform_item(*self._args(item)))

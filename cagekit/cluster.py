@@ -53,13 +53,15 @@ def connect(address: str, workers: int | None = None, setup=None):
     if address == "local":
         import dask
 
+        from cagekit.amplify import worker_count
+
         # Dask's nannies set MALLOC_TRIM_THRESHOLD_=65536 in their workers (and in this
         # process): glibc then hands freed memory back at once and faults it in again,
         # which made an item 12% slower; unset, it is the process pool's speed
         with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_":
                               None}):
-            cluster = LocalCluster(n_workers=_local_workers(workers), threads_per_worker=1,
-                                   processes=True, dashboard_address=None)
+            cluster = LocalCluster(n_workers=worker_count(workers, default=2),
+                                   threads_per_worker=1, processes=True, dashboard_address=None)
         client = Client(cluster)
     else:
         try:
@@ -70,24 +72,6 @@ def connect(address: str, workers: int | None = None, setup=None):
     if setup is not None:
         client.register_plugin(_Setup(setup))
     return client
-
-
-def _local_workers(workers: int | None) -> int:
-    """The worker processes of a local cluster: ``workers`` (default 2) cut to the cores,
-    with a :class:`~cagekit.errors.CagekitWarning` when a number asked for is cut."""
-    import warnings
-
-    from cagekit.amplify import usable_cores
-    from cagekit.errors import CagekitWarning
-
-    cores = usable_cores()
-    if workers is None:
-        return min(2, cores)
-    count = max(1, min(int(workers), cores))
-    if count < int(workers):
-        warnings.warn(f"{workers} workers asked for, {count} started ({cores} core(s))",
-                      CagekitWarning, stacklevel=3)
-    return count
 
 
 def _Setup(function):

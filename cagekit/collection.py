@@ -128,8 +128,8 @@ def find_shapes(collection: str, exclude: Iterable[str | os.PathLike] = ()) -> l
     skipped = {os.path.realpath(path) for path in exclude}
     shapes = []
     for folder, dirs, files in os.walk(root):
-        dirs[:] = sorted(d for d in dirs if not d.startswith(".")
-                         and os.path.realpath(os.path.join(folder, d)) not in skipped)
+        dirs[:] = sorted(d for d in dirs if not d.startswith(".") and not (
+            skipped and os.path.realpath(os.path.join(folder, d)) in skipped))
         for file in sorted(files):
             stem, ext = os.path.splitext(file)
             if file.startswith(".") or ext.lower() not in SUPPORTED_MESH_EXTENSIONS:

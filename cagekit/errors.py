@@ -11,10 +11,12 @@ one line.
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
 
 __all__ = ["InputError", "MeshFileError", "LandmarkFileError", "CageError", "CageFitError",
            "CagekitWarning",
-           "MeshFileWarning", "OutsideCageWarning"]
+           "MeshFileWarning", "OutsideCageWarning"]  # and exception_chain, a helper of the
+#  command line and the optimiser that `import cagekit` does not export
 
 
 class InputError(ValueError):
@@ -62,3 +64,27 @@ class MeshFileWarning(CagekitWarning):
 
 class OutsideCageWarning(CagekitWarning):
     """Some bound points lie outside their cage: their coordinates extrapolate."""
+
+
+def exception_chain(exc: BaseException) -> Iterator[BaseException]:
+    """``exc`` and every exception of its cause/context chain, each once.
+
+    Examples
+    --------
+    >>> try:
+    ...     try:
+    ...         raise KeyError("inner")
+    ...     except KeyError as inner:
+    ...         raise ValueError("outer") from inner
+    ... except ValueError as outer:
+    ...     [type(e).__name__ for e in exception_chain(outer)]
+    ['ValueError', 'KeyError']
+    """
+    todo, seen = [exc], set()
+    while todo:
+        exc = todo.pop()
+        if exc is None or id(exc) in seen:
+            continue
+        seen.add(id(exc))
+        yield exc
+        todo += [exc.__cause__, exc.__context__]  # the context is looked at first

@@ -25,6 +25,8 @@ from dataclasses import dataclass
 import nlopt
 import numpy as np
 
+from cagekit.errors import exception_chain
+
 __all__ = ["Minimum", "minimise"]
 
 
@@ -155,16 +157,7 @@ class _Search:
 def _interrupt_in_chain(exc: BaseException) -> BaseException | None:
     """The first exception in ``exc``'s cause/context chain that is not an ``Exception``
     (``KeyboardInterrupt``, the command line's ``Interrupted``), or None."""
-    todo, seen = [exc], set()
-    while todo:
-        exc = todo.pop()
-        if exc is None or id(exc) in seen:
-            continue
-        if not isinstance(exc, Exception):
-            return exc
-        seen.add(id(exc))
-        todo += [exc.__cause__, exc.__context__]
-    return None
+    return next((e for e in exception_chain(exc) if not isinstance(e, Exception)), None)
 
 
 @contextlib.contextmanager

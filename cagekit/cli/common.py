@@ -40,7 +40,7 @@ import traceback
 
 import click
 
-from cagekit.errors import InputError
+from cagekit.errors import InputError, exception_chain
 from cagekit.progress import bar_callback, progress_bar, progress_enabled
 
 __all__ = ["BIND_CHUNK", "COORDINATE_METHODS", "DEFORM_COORDINATE_METHODS", "FIT_METHODS",
@@ -153,16 +153,8 @@ def _interrupt_in_chain(exc: BaseException) -> bool:
     KeyboardInterrupt or :class:`Interrupted` in its cause/context chain (native code that
     calls Python back wraps one in a SystemError, "returned a result with an exception
     set"; a clean-up that fails chains it)."""
-    todo, seen = [exc], set()
-    while todo:
-        exc = todo.pop()
-        if exc is None or id(exc) in seen:
-            continue
-        if isinstance(exc, (KeyboardInterrupt, Interrupted, click.Abort)):
-            return True
-        seen.add(id(exc))
-        todo += [exc.__cause__, exc.__context__]
-    return False
+    return any(isinstance(e, (KeyboardInterrupt, Interrupted, click.Abort))
+               for e in exception_chain(exc))
 
 
 def _print_error(code: int, error: BaseException, message: str, debug: bool,
