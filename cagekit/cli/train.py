@@ -202,8 +202,10 @@ def _refuse_contradictions(ctx: click.Context, config, source_cage) -> None:
     stored = resume_config(config.run_dir)
     params = {param.name: param for param in ctx.command.params}
     for name, key in _STORED_OPTIONS.items():
+        if not _given(ctx, name):
+            continue  # not given: the checkpoint's is taken, nothing to compare
         given, kept = _setting(config, key), _setting(stored, key)
-        if not _given(ctx, name) or given == kept:
+        if given == kept:
             continue
         option = params[name].opts[0]
         if params[name].is_flag:
