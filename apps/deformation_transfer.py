@@ -39,12 +39,14 @@ from cagekit.surface_binding import SurfaceBinding, bind_surface, check_coupling
 
 __all__ = ["CharacterCage", "fit_character", "check_landmarks_on_mesh", "corresponds",
            "check_model", "template_cage_classical", "classical_fitter", "template_cage_learned",
-           "transfer", "cage_oracle", "render_grid", "SMOOTHNESS"]
+           "transfer", "cage_oracle", "render_grid", "ROOTS", "SMOOTHNESS"]
 
 #: weight of the cage-Laplacian term of the classical template fit (the cage's own units)
 SMOOTHNESS = 1e-2
 #: L-BFGS evaluations of the Chamfer template fit (poses need more than the default 60)
 TEMPLATE_EVALUATIONS = 200
+#: where the character goes when the example moves the template's root (:func:`transfer`)
+ROOTS = ("follow", "ground")
 #: largest median distance of a mesh's landmarks from its vertices, in its bounding-box
 #: diagonals: landmarks farther off were given in another frame or unit than the mesh
 LANDMARK_OFFSET = 0.1
@@ -145,7 +147,7 @@ def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
     else:
         raise InputError(f"align must be 'box' or 'similarity', got {align!r}")
     fit = fit_character_cage(cage_v, cage_f, match.source, match.target, character_v,
-                             alignment=alignment)
+                             alignment=alignment, labels=match.labels)
     # the fit checked this cage (closed, no crossing, every vertex inside)
     weights = bind(character_v, fit.cage_v, fit.cage_f, check=False).weights
     binding = bind_surface(character_v, character_f, fit.cage_v, fit.cage_f, weights=weights,
@@ -345,7 +347,7 @@ def template_cage_learned(model, template_v, cage_v, pose) -> np.ndarray:
 
 
 def transfer(character: CharacterCage, deformed_template_cage_v,
-             rule: str = "pose", *, refine: bool = True) -> np.ndarray:
+             rule: str = "pose", *, refine: bool = True, root: str = "follow") -> np.ndarray:
     """The character deformed like the template.
 
     Parameters
@@ -359,17 +361,29 @@ def transfer(character: CharacterCage, deformed_template_cage_v,
     refine : bool, default True
         Make the cage's result as rigid as possible where it tears the mesh
         (:meth:`cagekit.surface_binding.SurfaceBinding.deform`).
+    root : {"follow", "ground"}, default "follow"
+        Where the whole character goes when the example also moves the template's root
+        (a jump, a crouch, a step): ``"follow"`` moves it as the template's root moves,
+        scaled by the alignment (:func:`cagekit.cage_transfer.root_weights`; the pose
+        rule pins the root, the point of the template's cage the example moves least near
+        its centre); ``"ground"`` then moves it along +y (up, the axis the characters
+        stand on) until its lowest point is where its rest pose's lowest point was: its
+        ground contact is kept.
 
     Returns
     -------
     (n, 3) float64
         The character's vertices, in its rest pose's frame and faces.
     """
+    if root not in ROOTS:
+        raise InputError(f"root must be one of {', '.join(ROOTS)}, got {root!r}")
     cage = transfer_cage(rule, character.template_cage_v, deformed_template_cage_v,
                          character.cage_v, character.cage_f, character.fit.alignment)
     X = character.binding.deform(cage, refine=refine)
     if not np.isfinite(X).all():
         raise FloatingPointError("the transfer produced NaN or inf positions")
+    if root == "ground":
+        X[:, 1] += character.vertices[:, 1].min() - X[:, 1].min()
     return X
 
 

@@ -14,8 +14,10 @@ rules:
   rest rotation is replaced (a T-pose example gives a T-pose, whatever the character's
   rest pose). The cage is the sparse least-squares fit of every face's edges to those
   gradients; its translation, which edges cannot fix, follows the offsets rule at the
-  cage vertices the template moves least (the root of the motion), component by
-  component.
+  **root** of each component (:func:`root_weights`): the point inside ``C_s`` that the
+  example moves least, preferring the cage's centre (a body turned about its pelvis stays
+  pinned at the pelvis; a body the example carries along is carried by its centre, scaled
+  like the offsets rule).
 
 Both work in the template's frame: ``alignment`` maps it to the character's.
 """
@@ -31,13 +33,19 @@ from cagekit.errors import InputError
 from cagekit.frame import Frame
 from cagekit.geometry import as_vertices, polar
 
-__all__ = ["RULES", "face_gradients", "polar", "transfer_offsets", "transfer_pose",
-           "transfer_cage"]
+__all__ = ["RULES", "face_gradients", "polar", "root_weights", "transfer_offsets",
+           "transfer_pose", "transfer_cage"]
 
 #: the rules :func:`transfer_cage` knows
 RULES = ("pose", "offsets")
-#: share of the cage vertices, least moved by the template, that fix the translation
-ROOT_SHARE = 0.1
+#: share of the points sampled inside the template's cage that make its root
+ROOT_SHARE = 0.02
+#: points per axis of the grid sampled over the template cage's bounding box for the root
+ROOT_GRID = 24
+#: the root's preference for the cage's centre: distance from it counts this much against
+#: the motion (a turn about a pivot of more than 6 degrees moves points near the centre
+#: more than this; a translation moves every point alike, and the centre is taken)
+ROOT_CENTRE = 0.1
 
 
 def _frames(V, F) -> np.ndarray:
@@ -172,17 +180,19 @@ def transfer_pose(template_cage_v, deformed_template_cage_v, character_cage_v, c
     target = np.einsum("fij,fej->fei", G, rest_edges).reshape(-1, 3)
     offsets = transfer_offsets(Cs, Ct, Cc, Similarity.identity())
     parts = _vertex_components(len(Cs), F)
-    weights = _root_weights(np.linalg.norm(Ct - Cs, axis=1), parts)
-    # min |D X - target|^2 + eps sum_i w_i |x_i - offsets_i|^2: the tiny term fixes each
-    # component's translation (its weighted mean is the offsets rule's), nothing else
+    roots = [root_weights(Cs, Ct, F, part) for part in parts]
+    weights = np.zeros(len(Cs))
+    for part, root in zip(parts, roots):
+        weights[part] = np.abs(root)
+    # min |D X - target|^2 + eps sum_i w_i |x_i - offsets_i|^2: the tiny term makes the
+    # system definite; the translation is then set exactly below
     eps = 1e-8 * 6.0 * len(F) / weights.sum()
     K = (D.T @ D + eps * scipy.sparse.diags(weights)).tocsc()
     rhs = D.T @ target + eps * weights[:, None] * offsets
     X = scipy.sparse.linalg.splu(K).solve(rhs)
-    # each component's weighted mean exactly (the eps term leaves an O(eps) error)
-    for part in parts:
-        w = weights[part]
-        X[part] += (w @ offsets[part] - w @ X[part]) / w.sum()
+    # each component's root where the offsets rule puts it (its coordinates sum to one)
+    for part, root in zip(parts, roots):
+        X[part] += root @ offsets[part] - root @ X[part]
     if not np.isfinite(X).all():
         raise FloatingPointError("the pose-aware transfer produced NaN or inf positions")
     return alignment.apply(frame.to_world(X))
@@ -196,14 +206,69 @@ def _vertex_components(k, F) -> list[np.ndarray]:
     return [np.unique(F[labels == label]) for label in np.unique(labels)]
 
 
-def _root_weights(displacement, parts) -> np.ndarray:
-    """1 on the :data:`ROOT_SHARE` least-displaced vertices of each component (``parts``,
-    vertex index arrays), else 0."""
-    weights = np.zeros(len(displacement))
-    for part in parts:
-        count = max(1, int(np.ceil(ROOT_SHARE * len(part))))
-        weights[part[np.argsort(displacement[part], kind="stable")[:count]]] = 1.0
-    return weights
+def root_weights(template_cage_v, deformed_template_cage_v, cage_f, part=None) -> np.ndarray:
+    """The root of a cage's motion, as mean value coordinates in the rest cage.
+
+    The centres of a :data:`ROOT_GRID` grid over the rest cage's bounding box, kept where
+    they lie inside it, are scored by how far the motion moves them plus
+    :data:`ROOT_CENTRE` times how far they lie from their centroid; the root is the mean of
+    the best :data:`ROOT_SHARE` of them. Turned about a pivot inside it (a body about its
+    pelvis), the cage's root is near the pivot; carried along, it is its centre.
+
+    Parameters
+    ----------
+    template_cage_v, deformed_template_cage_v : (k, 3) array_like of float
+        The cage at rest and moved (same faces).
+    cage_f : (m, 3) array_like of int
+    part : (p,) array_like of int, optional
+        The vertices of one connected component (faces using only them are its cage);
+        default all.
+
+    Returns
+    -------
+    (p,) float64
+        Coordinates summing to one: ``weights @ cage_v[part]`` is the root.
+
+    Examples
+    --------
+    >>> from cagekit.shapes import box_cage
+    >>> v, f = box_cage()
+    >>> w = root_weights(v, v + [1.0, 0.0, 0.0], f)  # carried along: its centre
+    >>> bool(np.linalg.norm(w @ v) < 0.05 * np.linalg.norm(np.ptp(v, axis=0)))
+    True
+    >>> turn = np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]])
+    >>> pivot = np.array([0.5, 0.5, 0.0])  # turned about a point off the centre
+    >>> w = root_weights(v, (v - pivot) @ turn.T + pivot, f)
+    >>> bool(np.linalg.norm(w @ v - pivot) < np.linalg.norm(pivot))
+    True
+    """
+    from cagekit.cage import winding_numbers
+    from cagekit.coords.mvc import mean_value_coordinates
+
+    Cs = as_vertices(template_cage_v, "template_cage_v")
+    Ct = as_vertices(deformed_template_cage_v, "deformed_template_cage_v")
+    F = np.asarray(cage_f, dtype=np.int64)
+    part = np.arange(len(Cs)) if part is None else np.asarray(part, dtype=np.int64)
+    index = np.full(len(Cs), -1)
+    index[part] = np.arange(len(part))
+    faces = index[F[np.isin(F, part).all(axis=1)]]
+    Cs, Ct = Cs[part], Ct[part]
+    lo, hi = Cs.min(axis=0), Cs.max(axis=0)
+    centres = (np.arange(ROOT_GRID) + 0.5) / ROOT_GRID  # cell centres: none on a box's face
+    axes = [lo[i] + centres * (hi[i] - lo[i]) for i in range(3)]
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    inside = grid[winding_numbers(grid, Cs, faces) >= 0.5]
+    if len(inside) == 0:  # a sliver thinner than the grid: its vertices stand in
+        inside = Cs
+    W = mean_value_coordinates(inside, Cs, faces, check=False)
+    diagonal = float(np.linalg.norm(hi - lo))
+    score = (np.linalg.norm(W @ (Ct - Cs), axis=1)
+             + ROOT_CENTRE * np.linalg.norm(inside - inside.mean(axis=0), axis=1)) / diagonal
+    # the best share, ties included (a symmetric cage has many: rounding must not pick)
+    cut = np.partition(score, max(1, int(ROOT_SHARE * len(inside))) - 1)[
+        max(1, int(ROOT_SHARE * len(inside))) - 1]
+    weights = W[score <= cut + 1e-9].mean(axis=0)
+    return weights / weights.sum()
 
 
 def transfer_cage(rule, template_cage_v, deformed_template_cage_v, character_cage_v,

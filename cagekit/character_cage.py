@@ -26,8 +26,9 @@ so, however close the character's limbs hang to its body (walls of neighbouring 
 squeeze together instead of crossing). Then the checks (:func:`cage_checks`): closed by
 construction (the template's faces), no self-intersection, every character vertex inside,
 and landmarks reached (misses above :data:`MAX_LANDMARK_ERROR` mean they asked for a fold);
-otherwise :class:`~cagekit.errors.CageFitError` names what failed. The paper's
-``L_consistency`` (MVC term) is reported beside the landmark errors. See
+otherwise :class:`~cagekit.errors.CageFitError` names what failed: the landmarks missed
+most (by label) and the landmarks nearest the points left outside (the parts the cage
+misses). The paper's ``L_consistency`` (MVC term) is reported beside the landmark errors. See
 docs/architecture.md.
 """
 
@@ -52,8 +53,8 @@ from cagekit.errors import CageError, CageFitError, InputError
 from cagekit.frame import Frame
 from cagekit.geometry import as_vertices, polar
 
-__all__ = ["CharacterCageFit", "fit_character_cage", "cage_checks", "LANDMARK_WEIGHT",
-           "MARGIN"]
+__all__ = ["CharacterCageFit", "fit_character_cage", "cage_checks", "missed_landmarks",
+           "nearest_landmarks", "LANDMARK_WEIGHT", "MARGIN"]
 
 #: weight of the landmark reproduction against the edges' rigidity (sums of squares)
 LANDMARK_WEIGHT = 4.0
@@ -77,10 +78,15 @@ ITERATIONS = 30
 ROUNDS = 12
 #: Newton steps with the self-contact barrier per local/global iteration
 NEWTON_STEPS = 2
-#: the largest landmark miss accepted for 90% of the landmarks, in cage diagonals (beyond
-#: it they ask for a fold the barrier refuses: labels swapped left for right, say; the
-#: real characters' fits stay below 0.025, labels mirrored left to right miss by 0.09)
+#: the largest landmark miss accepted for 90% of the landmarks, in diagonals of the template
+#: cage or of the character in the template's frame, whichever is larger (beyond it they
+#: ask for a fold the barrier refuses: labels swapped left for right, say; the real
+#: characters' fits stay below 0.025, labels mirrored left to right miss by 0.09; a
+#: character far wider than the template, long arms held wide, misses by more in the
+#: template cage's diagonals only because it is larger)
 MAX_LANDMARK_ERROR = 0.05
+#: how many labels a refusal names (landmarks missed most, parts left outside)
+NAMED = 5
 
 
 @dataclass
@@ -241,7 +247,8 @@ def _contact_rows(points, C, F, k, margin):
 def fit_character_cage(cage_v, cage_f, source_landmarks, target_landmarks, character_v, *,
                        alignment: Similarity,
                        landmark_weight: float = LANDMARK_WEIGHT, margin: float = MARGIN,
-                       iterations: int = ITERATIONS, rounds: int = ROUNDS) -> CharacterCageFit:
+                       iterations: int = ITERATIONS, rounds: int = ROUNDS,
+                       labels=None) -> CharacterCageFit:
     """Fit the template cage to a character by landmarks, enclosing it, never folded.
 
     Parameters
@@ -265,6 +272,9 @@ def fit_character_cage(cage_v, cage_f, source_landmarks, target_landmarks, chara
         Local/global iterations of the landmark stage and of each enclosure round.
     rounds : int, default :data:`ROUNDS`
         Enclosure rounds at most (the contact weight x4 each).
+    labels : sequence of str, optional
+        The landmarks' names (L of them), for a refusal's message; by default
+        ``landmark 0``, ``landmark 1`` ...
 
     Returns
     -------
@@ -278,8 +288,11 @@ def fit_character_cage(cage_v, cage_f, source_landmarks, target_landmarks, chara
         template cage (a vertex no face uses, more than :data:`MAX_CAGE_VERTICES`).
     CageFitError
         No valid cage after the rounds, or landmarks the cage cannot reach without
-        folding: the message names what failed; its ``cage`` attribute holds the rejected
-        ``(cage_v, cage_f)`` (to look at, never to use).
+        folding: the message names what failed, the landmarks missed most and those
+        nearest the points left outside; its ``cage`` attribute holds the rejected
+        ``(cage_v, cage_f)`` (to look at, never to use), ``missed`` the labels of the
+        landmarks missed by more than :data:`MAX_LANDMARK_ERROR` and ``outside_near`` the
+        labels nearest the points outside, with their counts.
 
     Examples
     --------
@@ -300,6 +313,7 @@ def fit_character_cage(cage_v, cage_f, source_landmarks, target_landmarks, chara
                          f"{len(P)} and {len(Q)}")
     if len(P) < 4:
         raise InputError(f"need at least 4 matching landmarks, got {len(P)}")
+    labels = _landmark_labels(labels, len(P))
     for name, value in (("landmark_weight", landmark_weight), ("margin", margin)):
         if not (np.isfinite(value) and value > 0):
             raise InputError(f"{name} must be a positive number, got {value!r}")
@@ -337,14 +351,10 @@ def fit_character_cage(cage_v, cage_f, source_landmarks, target_landmarks, chara
     if miss > MAX_LANDMARK_ERROR:
         checks["valid"] = False
         checks["problems"].append(
-            f"misses 10% of its landmarks by more than {miss:.2f} cage diagonals (they "
+            f"misses 10% of its landmarks by more than {miss:.2f} diagonals (they "
             "cannot be reached without folding the cage: labels swapped?)")
     if not checks["valid"]:
-        error = CageFitError("no valid character cage: the fitted cage "
-                             + "; it ".join(checks["problems"])
-                             + f" after {done} enclosure round(s)")
-        error.cage = (alignment.apply(frame.to_world(C)), F)  # to look at what went wrong
-        raise error
+        raise _refusal(fit, C, checks, labels, done, (alignment.apply(frame.to_world(C)), F))
     cage_out = alignment.apply(frame.to_world(C))
     return CharacterCageFit(
         cage_v=cage_out, cage_f=F, alignment=alignment,
@@ -363,6 +373,9 @@ class _Fit:
         self.F, self.phi, self.Qa, self.X = F, phi, Qa, X
         self.landmark_weight, self.contact_weight = landmark_weight, CONTACT_WEIGHT
         self.gap = margin * float(np.linalg.norm(np.ptp(Cs, axis=0)))
+        # landmark misses are judged against the larger of the template cage (unit
+        # diagonal) and the character: one far wider than the template misses by more
+        self.unit = max(1.0, float(np.linalg.norm(np.ptp(X, axis=0))))
         self.solver = _CageARAP(Cs, F)
         # a barrier already pushing at the start would keep even a similar copy of the
         # template from getting the similar cage: it starts below the template's clearance
@@ -373,9 +386,14 @@ class _Fit:
         self.boost = np.ones(len(X))
         self._outside_of = (None, None)  # (cage, its outside mask): one search a cage
 
+    def landmark_misses(self, C) -> np.ndarray:
+        """(L,) float64: each landmark's miss, in units of :attr:`unit` (diagonals of the
+        template cage or of the character, whichever is larger)."""
+        return np.linalg.norm(self.phi @ C - self.Qa, axis=1) / self.unit
+
     def landmark_miss(self, C) -> float:
-        """The 90th percentile of the landmark misses, in cage diagonals (unit frame)."""
-        return float(np.quantile(np.linalg.norm(self.phi @ C - self.Qa, axis=1), 0.9))
+        """The 90th percentile of :meth:`landmark_misses`."""
+        return float(np.quantile(self.landmark_misses(C), 0.9))
 
     def outside(self, C) -> np.ndarray:
         """(n,) bool: the character vertices outside cage ``C`` (winding number below 0.5),
@@ -408,6 +426,100 @@ class _Fit:
             if not np.isfinite(C).all():
                 raise CageFitError("the character cage fit diverged (non-finite positions)")
         return C
+
+
+def _landmark_labels(labels, count: int) -> list[str]:
+    """``labels`` as a list of ``count`` strings (``landmark i`` when None)."""
+    if labels is None:
+        return [f"landmark {i}" for i in range(count)]
+    labels = [str(label) for label in labels]
+    if len(labels) != count:
+        raise InputError(f"labels must name each of the {count} landmarks, got {len(labels)}")
+    return labels
+
+
+def _named(counts: dict, unit: str = "") -> str:
+    """``a (3), b (1) and 2 more``: the first :data:`NAMED` of ``counts`` (label -> number,
+    already ordered) with their numbers."""
+    items = list(counts.items())
+    shown = ", ".join(f"{label} ({value:{unit}})" for label, value in items[:NAMED])
+    return shown + (f" and {len(items) - NAMED} more" if len(items) > NAMED else "")
+
+
+def missed_landmarks(misses, labels, limit: float = MAX_LANDMARK_ERROR) -> dict:
+    """The landmarks missed by more than ``limit``, the worst first.
+
+    Parameters
+    ----------
+    misses : (L,) array_like of float
+    labels : sequence of str
+        L labels.
+    limit : float, default :data:`MAX_LANDMARK_ERROR`
+
+    Returns
+    -------
+    dict
+        label -> miss (float), in decreasing order of miss.
+
+    Examples
+    --------
+    >>> missed_landmarks([0.01, 0.2, 0.07], ["nose", "l_hand", "r_foot"])
+    {'l_hand': 0.2, 'r_foot': 0.07}
+    """
+    misses = np.asarray(misses, dtype=np.float64)
+    order = np.argsort(-misses, kind="stable")
+    return {labels[i]: float(misses[i]) for i in order if misses[i] > limit}
+
+
+def nearest_landmarks(points, landmarks, labels) -> dict:
+    """For points (left outside a cage, say), the label of each one's nearest landmark,
+    counted: which parts of the body they belong to.
+
+    Parameters
+    ----------
+    points : (n, 3) array_like of float
+    landmarks : (L, 3) array_like of float
+    labels : sequence of str
+        L labels.
+
+    Returns
+    -------
+    dict
+        label -> number of points (int), the most first; empty for no points.
+
+    Examples
+    --------
+    >>> nearest_landmarks([[0, 0, 0.1], [2, 0, 0], [0, 0.2, 0]], [[0, 0, 0], [2, 0, 0]],
+    ...                   ["head", "l_hand"])
+    {'head': 2, 'l_hand': 1}
+    """
+    from scipy.spatial import cKDTree
+
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if not len(points):
+        return {}
+    _, nearest = cKDTree(np.asarray(landmarks, dtype=np.float64)).query(points)
+    counts = np.bincount(nearest, minlength=len(labels))
+    order = np.argsort(-counts, kind="stable")
+    return {labels[i]: int(counts[i]) for i in order if counts[i]}
+
+
+def _refusal(fit: _Fit, C, checks: dict, labels, done: int, cage) -> CageFitError:
+    """The :class:`CageFitError` of a refused fit: its problems, the landmarks missed most
+    and the landmarks nearest the points left outside (unit frame ``C``)."""
+    missed = missed_landmarks(fit.landmark_misses(C), labels)
+    outside = nearest_landmarks(fit.X[fit.outside(C)], fit.Qa, labels)
+    message = ("no valid character cage: the fitted cage " + "; it ".join(checks["problems"])
+               + f" after {done} enclosure round(s)")
+    if missed:
+        message += (f"; landmarks missed by over {MAX_LANDMARK_ERROR} diagonals: "
+                    + _named(missed, ".2f"))
+    if outside:
+        message += "; the points outside lie nearest " + _named(outside, "d")
+    error = CageFitError(message)
+    error.cage = cage  # to look at what went wrong
+    error.missed, error.outside_near = list(missed), outside
+    return error
 
 
 def _check_spread(points, whose) -> None:

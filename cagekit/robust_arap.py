@@ -14,6 +14,13 @@ pulled to its proposal by a weight that falls as the two disagree (iteratively r
 least squares with a Cauchy weight ``1 / (1 + (r / sigma)^2)``). A patch that disagrees with
 the surface around it loses its pull and follows its neighbours; a proposal that is a
 similarity of the rest shape is returned unchanged.
+
+The reweighting alone cannot reject a shard it has followed: a point pulled by full trust
+lands on its proposal, agrees with it, and keeps its trust (a finger or a shoe's toe drawn
+out by a cage fold stays drawn out). So the proposal's own edges are read first: a point
+whose proposed edges are longer or shorter than their rest length by ``s`` (the largest
+over its edges) starts with its trust divided by ``1 + (s / sigma)^2`` (:func:`strain_trust`):
+the shard's ends lose their pull before the first solve and the mesh around them decides.
 """
 
 from __future__ import annotations
@@ -26,7 +33,7 @@ from cagekit.cage import unique_edges
 from cagekit.errors import InputError
 from cagekit.geometry import as_vertices, uniform_laplacian, vertex_rotations
 
-__all__ = ["RobustArap", "robust_arap", "STIFFNESS", "ITERATIONS"]
+__all__ = ["RobustArap", "robust_arap", "strain_trust", "STIFFNESS", "ITERATIONS"]
 
 #: weight of a fully trusted point's pull to its proposal against the uniform Laplacian
 #: (a vertex of degree 6 weighs 6 there)
@@ -44,7 +51,8 @@ class RobustArap:
     vertices : (n, 3) float64
         The deformed mesh.
     trust : (n,) float64
-        The final weight of each point's pull, ``confidence / (1 + (r / sigma)^2)``.
+        The final weight of each point's pull, ``c / (1 + (r / sigma)^2)`` (``c`` the
+        confidence times :func:`strain_trust`).
     """
 
     vertices: np.ndarray
@@ -58,8 +66,9 @@ def robust_arap(rest_v, faces, proposal, *, sigma: float, confidence=None,
 
     Minimises ``sum_ij |(x_i - x_j) - R_i scale (v_i - v_j)|^2 + stiffness sum_i t_i |x_i -
     p_i|^2`` over positions ``x`` and rotations ``R`` (edges of ``faces``, both directions),
-    the trust ``t_i = confidence_i / (1 + (|x_i - p_i| / sigma)^2)`` updated after each
-    solve.
+    the trust ``t_i = c_i / (1 + (|x_i - p_i| / sigma)^2)`` updated after each solve, ``c_i``
+    the prior ``confidence_i`` times :func:`strain_trust` (points whose proposed edges were
+    torn or crushed start doubted).
 
     Parameters
     ----------
@@ -118,6 +127,7 @@ def robust_arap(rest_v, faces, proposal, *, sigma: float, confidence=None,
     E = unique_edges(faces) if edges is None else np.asarray(edges, np.int64).reshape(-1, 2)
     if not len(E):
         return RobustArap(vertices=P.copy(), trust=c0.copy())
+    c0 = np.maximum(c0 * strain_trust(V, P, E, sigma=sigma, scale=scale), 1e-6)
     L = uniform_laplacian(n, E)
     i, j = np.concatenate([E[:, 0], E[:, 1]]), np.concatenate([E[:, 1], E[:, 0]])
     rest_edges = scale * (V[i] - V[j])
@@ -134,3 +144,37 @@ def robust_arap(rest_v, faces, proposal, *, sigma: float, confidence=None,
         raise FloatingPointError("robust_arap produced NaN or inf positions")
     return RobustArap(vertices=X, trust=trust)
 
+
+
+def strain_trust(rest_v, proposal, edges, *, sigma: float, scale: float = 1.0) -> np.ndarray:
+    """How far a proposal's edges at each point keep their rest length: ``1 / (1 + (s /
+    sigma)^2)``, ``s`` the largest ``| |p_i - p_j| - scale |v_i - v_j| |`` over the point's
+    edges (1 for a point without edges, and wherever the proposal is a similarity).
+
+    Parameters
+    ----------
+    rest_v, proposal : (n, 3) float64
+    edges : (e, 2) int64
+    sigma, scale : float
+        As :func:`robust_arap` takes them.
+
+    Returns
+    -------
+    (n,) float64 in (0, 1]
+
+    Examples
+    --------
+    >>> V = np.array([[0.0, 0, 0], [1, 0, 0], [2, 0, 0]])
+    >>> P = V.copy(); P[2, 0] = 5.0                    # the last edge drawn out by 3
+    >>> strain_trust(V, P, np.array([[0, 1], [1, 2]]), sigma=1.0).round(2).tolist()
+    [1.0, 0.1, 0.1]
+    """
+    n = len(rest_v)
+    E = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    s = np.zeros(n)
+    if len(E):
+        excess = np.abs(np.linalg.norm(proposal[E[:, 0]] - proposal[E[:, 1]], axis=1)
+                        - scale * np.linalg.norm(rest_v[E[:, 0]] - rest_v[E[:, 1]], axis=1))
+        np.maximum.at(s, E[:, 0], excess)
+        np.maximum.at(s, E[:, 1], excess)
+    return 1.0 / (1.0 + (s / sigma) ** 2)

@@ -9,6 +9,7 @@ from cagekit.alignment import Similarity
 from cagekit.cage_transfer import (
     face_gradients,
     polar,
+    root_weights,
     transfer_cage,
     transfer_offsets,
     transfer_pose,
@@ -43,15 +44,18 @@ def test_a_rigidly_rotated_limb_gets_the_rotation_not_the_offset():
     character = _rotate_about(v, about_z(-40), root)
     pose = transfer_pose(v, moved, character, f, Similarity.identity())
     # the shape and orientation of the template's moved limb (the translation follows
-    # the offsets rule at the least-moved vertex, which the character placed elsewhere)
+    # the offsets rule at the root, which the character placed elsewhere)
     np.testing.assert_allclose(pose - pose.mean(0), moved - moved.mean(0), atol=1e-9)
     offsets = transfer_offsets(v, moved, character, Similarity.identity())
     assert np.abs((offsets - offsets.mean(0)) - (moved - moved.mean(0))).max() > 0.5
-    # its place: the vertex the template moves least (here one, a tenth of 8) keeps the
-    # offsets rule's position, the character's vertex plus the template's displacement
-    root_vertex = int(np.argmin(np.linalg.norm(moved - v, axis=1)))
-    np.testing.assert_allclose(pose, moved + (character[root_vertex] - v[root_vertex]),
-                               atol=1e-9)
+    # its place: the root (the point the template moves least near the limb's centre, in
+    # cage coordinates) keeps the offsets rule's position: the character's root plus the
+    # template's displacement there
+    w = root_weights(v, moved, f)
+    np.testing.assert_allclose(w @ pose, w @ character + w @ (moved - v), atol=1e-9)
+    # and that root lies between the pivot and the limb's centre, nearer the pivot than
+    # the centre is
+    assert np.linalg.norm(w @ v - root) < np.linalg.norm(v.mean(0) - root)
 
 
 @settings(max_examples=25, deadline=None)
@@ -119,7 +123,7 @@ def test_the_template_stretch_comes_after_the_characters():
 
 def test_the_translation_follows_the_root_of_the_motion():
     # a character that is the template moved by t: whatever the example, both rules give
-    # the example moved by t (the least-moved vertices carry the translation)
+    # the example moved by t (the root carries the translation)
     v, f = _limb()
     a = np.radians(35)
     turn = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
@@ -129,6 +133,23 @@ def test_the_translation_follows_the_root_of_the_motion():
         np.testing.assert_allclose(transfer_cage(rule, v, moved, v + t, f,
                                                  Similarity.identity()), moved + t,
                                    atol=1e-9)
+
+
+def test_the_root_is_the_pivot_of_a_turn_and_the_centre_of_a_translation():
+    # a limb bent about a point a quarter along it is pinned there; twisted about its own
+    # axis (every point of the axis still), at its centre; carried along, at its centre
+    v, f = _limb()  # 4 long in x, from x = 0
+    pivot, centre = np.array([1.0, 0.0, 0.0]), np.array([2.0, 0.0, 0.0])
+    c, s = np.cos(np.radians(30)), np.sin(np.radians(30))
+    bend = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+    w = root_weights(v, _rotate_about(v, bend, pivot), f)
+    assert np.linalg.norm(w @ v - pivot) < 0.05
+    twist = np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+    w = root_weights(v, _rotate_about(v, twist, pivot), f)
+    assert np.linalg.norm(w @ v - centre) < 0.05
+    w = root_weights(v, v + np.array([0.3, -2.0, 1.0]), f)
+    assert np.linalg.norm(w @ v - centre) < 0.05
+    np.testing.assert_allclose(w.sum(), 1.0, atol=1e-12)
 
 
 def test_each_cage_component_keeps_its_own_translation():

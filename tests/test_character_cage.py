@@ -82,6 +82,24 @@ def test_landmarks_that_ask_for_a_fold_are_refused_naming_what_failed():
     assert not self_intersecting_faces(rejected_v, rejected_f).any()
 
 
+def test_a_refusal_names_the_landmarks_missed_and_the_parts_left_outside():
+    v, f = box_cage()
+    p = np.random.default_rng(0).uniform(-0.8, 0.8, (12, 3))
+    q = p * np.array([-1.0, 1.0, 1.0])  # mirrored: only a folded cage reaches them
+    labels = [f"mark_{i}" for i in range(len(p))]
+    with pytest.raises(CageFitError, match="landmarks missed by over 0.05 diagonals: "
+                                           r"mark_\d+ \(0\.\d\d\)") as error:
+        fit_character_cage(v, f, p, q, q, alignment=Similarity.identity(),
+                           landmark_weight=1e4, rounds=1, labels=labels)
+    missed = error.value.missed
+    assert missed and set(missed) <= set(labels) and len(missed) < len(labels)
+    assert f"{missed[0]} (" in str(error.value)  # the worst first
+    assert "the points outside lie nearest mark_" in str(error.value)
+    assert sum(error.value.outside_near.values()) == 12  # every point is left outside
+    with pytest.raises(InputError, match="labels must name each of the 12 landmarks"):
+        fit_character_cage(v, f, p, q, q, alignment=Similarity.identity(), labels=["a"])
+
+
 def test_cage_checks_see_each_problem():
     v, f = box_cage()
     assert cage_checks(np.zeros((3, 3)), v, f)["valid"]
@@ -172,6 +190,44 @@ def test_a_character_whose_hands_hang_by_its_hips_gets_a_valid_cage_and_the_pose
     error = np.linalg.norm(out - truth, axis=1).mean()
     assert error < 0.25 * np.linalg.norm(char.vertices - truth, axis=1).mean()
     assert error < 0.05 * np.ptp(char.vertices[:, 1])
+
+
+def test_a_long_limbed_wide_armed_character_gets_a_valid_cage(template):
+    # the tree-like "Ent" of issue 30 (refused with a third of its points outside):
+    # arms 1.7x the template's held 35 degrees up, legs 1.3x and apart, thin limbs
+    rig, (cage_v, cage_f) = template
+    char, P, Q = _character(rig, "long_limbed_wide")
+    fit = fit_character_cage(cage_v, cage_f, P, Q, char.vertices,
+                             alignment=box_alignment(rig.vertices, char.vertices))
+    assert fit.checks["valid"] and fit.checks["volume"] > 0
+    assert not self_intersecting_faces(fit.cage_v, fit.cage_f).any()
+    assert winding_numbers(char.vertices, fit.cage_v, fit.cage_f).min() >= 0.5
+    assert np.quantile(fit.landmark_errors, 0.9) < 0.02 * np.ptp(char.vertices[:, 1])
+    # the left hand's cage went up with the arm
+    hand = np.argmax(cage_v[:, 0])
+    assert fit.cage_v[hand, 1] > fit.cage_v[:, 1].mean() + 0.2 * np.ptp(fit.cage_v[:, 1])
+
+
+def _on_arm(label):
+    return any(part in label for part in ("arm", "hand", "palm", "knuckle", "thumb", "index",
+                                          "middle", "ring", "pinky"))
+
+
+def test_arms_labelled_left_for_right_are_refused_naming_arm_landmarks(template):
+    rig, (cage_v, cage_f) = template
+    char, P, Q = _character(rig, "long_limbed_wide")
+    shared = [k for k in humanoid.LANDMARK_NAMES[::2]
+              if k in {m.label for m in char.landmarks}]
+    swapped = Q.copy()
+    for i, k in enumerate(shared):
+        mirror = {"l": "r_", "r": "l_"}.get(k[0], "") + k[2:]
+        if _on_arm(k) and mirror in shared:
+            swapped[i] = Q[shared.index(mirror)]
+    with pytest.raises(CageFitError, match="misses 10% of its landmarks") as error:
+        fit_character_cage(cage_v, cage_f, P, swapped, char.vertices, labels=shared,
+                           alignment=box_alignment(rig.vertices, char.vertices))
+    assert error.value.missed and all(_on_arm(k) for k in error.value.missed[:5])
+    assert error.value.missed[0] in str(error.value)
 
 
 @pytest.mark.slow

@@ -63,6 +63,20 @@ def test_rest_pose_angles():
     np.testing.assert_allclose((up * mirror)[r.landmarks["r_hand_tip"]], up[tip], atol=1e-9)
 
 
+def test_long_limbed_wide_holds_its_long_arms_above_the_t_with_legs_apart():
+    # the tree-like "Ent" of issue 30: arms 1.7x the template's, 35 degrees up
+    c = characters.character("long_limbed_wide")
+    rig = humanoid.rig("long_limbed")
+    J = {name: i for i, name in enumerate(humanoid.JOINTS)}
+    joints = rig.posed_joints(c.rest_pose)
+    arm = joints[J["l_wrist"]] - joints[J["l_shoulder"]]
+    assert 30 <= np.degrees(np.arctan2(arm[1], arm[0])) <= 40
+    assert joints[J["l_ankle"], 0] - joints[J["l_hip"], 0] > 0.1 * np.linalg.norm(
+        joints[J["l_ankle"]] - joints[J["l_hip"]])
+    assert "long_limbed_wide" in characters.UNLIKE_CHARACTERS
+    assert 8000 <= len(c.vertices) <= 12000  # about the user's 10,000
+
+
 def test_unknown_character():
     with pytest.raises(ValueError, match="unknown character"):
         characters.character("dragon")

@@ -418,6 +418,7 @@ def _proportions(body):
     ("child", {"head": (1.5, 2.2), "arms": (0.6, 0.7), "legs": (0.6, 0.75)}),
     ("tall_thin", {"arms": (1.25, 1.4), "legs": (1.1, 1.3)}),
     ("long_torso", {"arms": (0.6, 0.8), "legs": (0.6, 0.8)}),
+    ("long_limbed", {"arms": (1.6, 1.8), "legs": (1.2, 1.4), "shoulders": (0.6, 0.8)}),
 ])
 def test_unlike_bodies_have_the_proportions_they_claim(body, expected):
     from cagekit.datasets.humanoid import UNLIKE_BODIES

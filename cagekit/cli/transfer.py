@@ -44,6 +44,11 @@ AUTO = "auto"
               show_default=True,
               help="pose: the template's joint rotations, whatever the character's rest "
                    "pose; offsets: the paper's C_c + A (C_st - C_s).")
+@click.option("--root", type=click.Choice(["follow", "ground"]), default="follow",
+              show_default=True,
+              help="When the example moves the template's whole body (a jump, a crouch): "
+                   "follow: the character moves with it, scaled; ground: its lowest point "
+                   "stays where it was at rest (along +y).")
 @click.option("--model", "model_path", type=click.Path(), default=None,
               help="A fixed-source run (folder or checkpoint.pt) predicts the template's "
                    "cage deformation instead of the per-pair fit.")
@@ -64,7 +69,7 @@ AUTO = "auto"
 @debug_option
 @click.pass_context
 def transfer(ctx, template, template_cage, template_landmarks, character,
-             character_landmarks, poses, out_dir, rule, model_path, align, coords,
+             character_landmarks, poses, out_dir, rule, root, model_path, align, coords,
              cage_faces, grid_path, seed, as_json):
     """Transfer the TEMPLATE's POSES to a novel CHARACTER given matching landmarks.
 
@@ -109,12 +114,12 @@ def transfer(ctx, template, template_cage, template_landmarks, character,
         warnings.warn(CagekitWarning(unmatched), stacklevel=1)
     t_fitted = time.perf_counter()
     results = _transfer_poses(char, (Vt, Ft), (cage_v, cage_f), pose_paths, pose_meshes, model,
-                              rule, seed)
+                              rule, root, seed)
     rows = _write(out, char, pose_paths, names, results, pose_meshes, grid_path)
     seconds = {"load": t_loaded - start, "fit": t_fitted - t_loaded,
                "transfer": time.perf_counter() - t_fitted}
     report = _report(out, char, rows, seconds, start, template, template_cage, character,
-                     model, rule, align, coords, grid_path)
+                     model, rule, root, align, coords, grid_path)
     if as_json:
         emit_json(report)
     else:
@@ -209,7 +214,7 @@ def _load(template, template_cage, template_landmarks, character, character_land
 
 
 def _transfer_poses(char, template, template_cage, pose_paths, pose_meshes, model, rule,
-                    seed):
+                    root, seed):
     """(transferred vertices, seconds) per pose, classical or learned."""
     from apps import deformation_transfer as dt
 
@@ -225,7 +230,7 @@ def _transfer_poses(char, template, template_cage, pose_paths, pose_meshes, mode
                                                           (Vp, Fp), seed=seed, fitter=fitter)
                 else:
                     deformed = dt.template_cage_learned(model, Vt, cage_v, (Vp, Fp))
-                X = dt.transfer(char, deformed, rule)
+                X = dt.transfer(char, deformed, rule, root=root)
             except InputError as exc:
                 raise InputError(exc.problem, path) from None  # name the pose
             results.append((X, time.perf_counter() - t0))
@@ -254,14 +259,14 @@ def _write(out, char, pose_paths, names, results, pose_meshes, grid_path):
 
 
 def _report(out, char, rows, seconds, start, template, template_cage, character, model,
-            rule, align, coords, grid_path) -> dict:
+            rule, root, align, coords, grid_path) -> dict:
     """Write report.json and return it."""
     from cagekit.files import atomic_output
 
     fit = char.fit
     report = {
         "template": template, "template_cage": template_cage, "character": character,
-        "mode": "learned" if model is not None else "classical", "rule": rule,
+        "mode": "learned" if model is not None else "classical", "rule": rule, "root": root,
         "align": align, "coords": coords,
         "landmarks": {"matched": len(char.match.labels),
                       "template_only": char.match.source_only,

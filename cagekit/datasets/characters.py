@@ -105,11 +105,17 @@ CHARACTERS: dict[str, tuple] = {
     "tall_thin_wide": ("tall_thin", 0.8, {"arms": 20, "legs": 8}, "remeshed"),
     "long_torso_relaxed": ("long_torso", 0.9, {"arms": -55, "legs": 6, "turn": 8,
                                                 "elbows": 15}, "remeshed"),
+    # a tree-like "Ent" (issue 30): arms 1.7x as long held 35 degrees above the T, legs
+    # apart; about 10,000 vertices, as the user's
+    "long_limbed_wide": ("long_limbed", 1.05, {"arms": 35, "legs": 10}, "remeshed"),
+    # the bulky robot of issue 30 as an artist would build it: one open box per part
+    "brute_boxes": ("brute", 1.0, {"arms": -37, "legs": 4}, "boxes"),
 }
 
 #: the characters of :data:`CHARACTERS` whose proportions are far from the template's
 UNLIKE_CHARACTERS: tuple[str, ...] = ("brute_arms_down", "child_a_pose", "tall_thin_wide",
-                                      "long_torso_relaxed")
+                                      "long_torso_relaxed", "long_limbed_wide",
+                                      "brute_boxes")
 
 
 @dataclass

@@ -195,19 +195,27 @@ BODY_SHAPES: dict[str, BodyShape] = {
                             head_ratio=0.12, arm_ratio=0.24, forearm_share=0.46,
                             hand_ratio=0.09, shoulder_width=0.22, hip_width=0.11,
                             chest_width=0.11, waist_width=0.095),
+    # a tree-like "Ent" (issue 30: refused with a third of its points outside the cage):
+    # arms 1.7x as long, legs 1.3x, thin limbs on a narrow torso
+    "long_limbed": BodyShape(height=2.4, leg_ratio=0.65, torso_ratio=0.22, neck_ratio=0.04,
+                             head_ratio=0.09, arm_ratio=0.56, forearm_share=0.5,
+                             hand_ratio=0.12, foot_ratio=0.13, shoulder_width=0.16,
+                             hip_width=0.08, chest_width=0.07, waist_width=0.055,
+                             torso_depth=0.6, limb_thickness=0.55, head_size=0.8),
 }
-"""Named body shapes: the template, three novel ones of roughly its proportions and four far
+"""Named body shapes: the template, three novel ones of roughly its proportions and five far
 from them (:data:`UNLIKE_BODIES`)."""
 
 NOVEL_BODIES: tuple[str, ...] = ("skinny", "stocky", "robot")
 """Bodies to transfer poses onto (see :data:`BODY_SHAPES`), of roughly the template's
 proportions."""
 
-UNLIKE_BODIES: tuple[str, ...] = ("brute", "child", "tall_thin", "long_torso")
+UNLIKE_BODIES: tuple[str, ...] = ("brute", "child", "tall_thin", "long_torso", "long_limbed")
 """Bodies whose proportions are far from the template's, each posed by its own skeleton: a
 brute (shoulders 1.8x as wide, chest 2x as deep, limbs 2.5x as thick, legs 0.6x as long,
 a small head), a child (head 1.8x, limbs 0.65x), a tall thin one (limbs 1.3x, narrow
-torso) and one with a long torso and short arms."""
+torso), one with a long torso and short arms, and a long-limbed one (arms 1.7x, legs 1.3x,
+limbs half as thick, shoulders 0.7x as wide)."""
 
 _BODY_RANGES = {
     "height": (1.50, 1.95), "leg_ratio": (0.44, 0.53), "torso_ratio": (0.30, 0.35),
