@@ -366,9 +366,9 @@ def transfer(character: CharacterCage, deformed_template_cage_v,
         (a jump, a crouch, a step): ``"follow"`` moves it as the template's root moves,
         scaled by the alignment (:func:`cagekit.cage_transfer.root_weights`; the pose
         rule pins the root, the point of the template's cage the example moves least near
-        its centre); ``"ground"`` then moves it along +y (up, the axis the characters
-        stand on) until its lowest point is where its rest pose's lowest point was: its
-        ground contact is kept.
+        its centre); ``"ground"`` then moves every result along +y (up, the axis the
+        characters stand on) until its lowest point is where its rest pose's lowest
+        point was: its ground contact is kept, in a jump or a seated pose as well.
 
     Returns
     -------

@@ -38,7 +38,8 @@ __all__ = ["RULES", "face_gradients", "polar", "root_weights", "transfer_offsets
 
 #: the rules :func:`transfer_cage` knows
 RULES = ("pose", "offsets")
-#: share of the points sampled inside the template's cage that make its root
+#: share of the points sampled inside the template's cage whose score gap sets the root's
+#: softness (:func:`root_weights`)
 ROOT_SHARE = 0.02
 #: points per axis of the grid sampled over the template cage's bounding box for the root
 ROOT_GRID = 24
@@ -206,14 +207,16 @@ def _vertex_components(k, F) -> list[np.ndarray]:
     return [np.unique(F[labels == label]) for label in np.unique(labels)]
 
 
-def root_weights(template_cage_v, deformed_template_cage_v, cage_f, part=None) -> np.ndarray:
+def root_weights(template_cage_v, deformed_template_cage_v, cage_f,
+                 part: np.ndarray | None = None) -> np.ndarray:
     """The root of a cage's motion, as mean value coordinates in the rest cage.
 
     The centres of a :data:`ROOT_GRID` grid over the rest cage's bounding box, kept where
     they lie inside it, are scored by how far the motion moves them plus
-    :data:`ROOT_CENTRE` times how far they lie from their centroid; the root is the mean of
-    the best :data:`ROOT_SHARE` of them. Turned about a pivot inside it (a body about its
-    pelvis), the cage's root is near the pivot; carried along, it is its centre.
+    :data:`ROOT_CENTRE` times how far they lie from their centroid (the centre of the
+    cage's interior); the root is the weighted mean of the best ones. Turned about a pivot
+    inside it (a body about its pelvis), the cage's root is near the pivot; carried along,
+    it is its centre.
 
     Parameters
     ----------
@@ -227,7 +230,17 @@ def root_weights(template_cage_v, deformed_template_cage_v, cage_f, part=None) -
     Returns
     -------
     (p,) float64
-        Coordinates summing to one: ``weights @ cage_v[part]`` is the root.
+        Coordinates summing to one: ``weights @ cage_v[part]`` is the root. It moves
+        continuously with the motion: each point weighs ``exp(-gap / tau)``, ``gap`` its
+        score above the best and ``tau`` the gap of the best :data:`ROOT_SHARE`. A part
+        thinner than the grid's cells, with no cell centre inside, is scored at its
+        vertices.
+
+    Raises
+    ------
+    InputError
+        Cages of different vertex counts, NaN or inf, a ``part`` that makes no face, a
+        rest cage flat along an axis.
 
     Examples
     --------
@@ -245,30 +258,49 @@ def root_weights(template_cage_v, deformed_template_cage_v, cage_f, part=None) -
     from cagekit.cage import winding_numbers
     from cagekit.coords.mvc import mean_value_coordinates
 
-    Cs = as_vertices(template_cage_v, "template_cage_v")
-    Ct = as_vertices(deformed_template_cage_v, "deformed_template_cage_v")
-    F = np.asarray(cage_f, dtype=np.int64)
-    part = np.arange(len(Cs)) if part is None else np.asarray(part, dtype=np.int64)
-    index = np.full(len(Cs), -1)
-    index[part] = np.arange(len(part))
-    faces = index[F[np.isin(F, part).all(axis=1)]]
-    Cs, Ct = Cs[part], Ct[part]
+    Cs, Ct, faces = _root_cage(template_cage_v, deformed_template_cage_v, cage_f, part)
     lo, hi = Cs.min(axis=0), Cs.max(axis=0)
     centres = (np.arange(ROOT_GRID) + 0.5) / ROOT_GRID  # cell centres: none on a box's face
     axes = [lo[i] + centres * (hi[i] - lo[i]) for i in range(3)]
     grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-    inside = grid[winding_numbers(grid, Cs, faces) >= 0.5]
-    if len(inside) == 0:  # a sliver thinner than the grid: its vertices stand in
+    # either orientation of the faces: inside is where the winding number is +-1
+    inside = grid[np.abs(winding_numbers(grid, Cs, faces)) >= 0.5]
+    if len(inside) == 0:  # a sliver thinner than the grid cells: its vertices stand in
         inside = Cs
     W = mean_value_coordinates(inside, Cs, faces, check=False)
     diagonal = float(np.linalg.norm(hi - lo))
     score = (np.linalg.norm(W @ (Ct - Cs), axis=1)
              + ROOT_CENTRE * np.linalg.norm(inside - inside.mean(axis=0), axis=1)) / diagonal
-    # the best share, ties included (a symmetric cage has many: rounding must not pick)
-    cut = np.partition(score, max(1, int(ROOT_SHARE * len(inside))) - 1)[
-        max(1, int(ROOT_SHARE * len(inside))) - 1]
-    weights = W[score <= cut + 1e-9].mean(axis=0)
+    # soft, so that the root moves continuously with the motion (a hard cut would jump
+    # between two equally still places, say two feet): each point weighs exp(-gap / tau),
+    # gap its score above the best, tau the gap of the best share
+    gap = score - score.min()
+    tau = max(float(np.quantile(gap, ROOT_SHARE)), 1e-9)
+    closeness = np.exp(-gap / tau)
+    weights = closeness @ W
     return weights / weights.sum()
+
+
+def _root_cage(template_cage_v, deformed_template_cage_v, cage_f, part):
+    """The rest and moved vertices of ``part`` and its faces (renumbered), checked."""
+    Cs = as_vertices(template_cage_v, "template_cage_v")
+    Ct = as_vertices(deformed_template_cage_v, "deformed_template_cage_v")
+    if Cs.shape != Ct.shape:
+        raise InputError(f"the rest and moved cages must have the same vertex count, got "
+                         f"{len(Cs)} and {len(Ct)}")
+    if not (np.isfinite(Cs).all() and np.isfinite(Ct).all()):
+        raise InputError("the rest or moved cage holds NaN or inf")
+    F = np.asarray(cage_f, dtype=np.int64)
+    part = np.arange(len(Cs)) if part is None else np.asarray(part, dtype=np.int64)
+    index = np.full(len(Cs), -1)
+    index[part] = np.arange(len(part))
+    faces = index[F[np.isin(F, part).all(axis=1)]]
+    if not len(faces):
+        raise InputError("the cage's vertices given (part) make no face: no root")
+    Cs, Ct = Cs[part], Ct[part]
+    if not np.ptp(Cs, axis=0).all():
+        raise InputError("the rest cage has no extent along some axis: no root")
+    return Cs, Ct, faces
 
 
 def transfer_cage(rule, template_cage_v, deformed_template_cage_v, character_cage_v,

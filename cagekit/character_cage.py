@@ -35,6 +35,7 @@ docs/architecture.md.
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -248,7 +249,7 @@ def fit_character_cage(cage_v, cage_f, source_landmarks, target_landmarks, chara
                        alignment: Similarity,
                        landmark_weight: float = LANDMARK_WEIGHT, margin: float = MARGIN,
                        iterations: int = ITERATIONS, rounds: int = ROUNDS,
-                       labels=None) -> CharacterCageFit:
+                       labels: Sequence[str] | None = None) -> CharacterCageFit:
     """Fit the template cage to a character by landmarks, enclosing it, never folded.
 
     Parameters
@@ -432,10 +433,19 @@ def _landmark_labels(labels, count: int) -> list[str]:
     """``labels`` as a list of ``count`` strings (``landmark i`` when None)."""
     if labels is None:
         return [f"landmark {i}" for i in range(count)]
+    if isinstance(labels, str):
+        raise InputError("labels must be a sequence of strings, one a landmark, not one string")
     labels = [str(label) for label in labels]
     if len(labels) != count:
         raise InputError(f"labels must name each of the {count} landmarks, got {len(labels)}")
     return labels
+
+
+def _check_labels(labels, count: int) -> None:
+    """Refuse ``labels`` that do not name ``count`` landmarks one each."""
+    if isinstance(labels, str) or len(labels) != count:
+        raise InputError(f"labels must name each of the {count} landmarks, got "
+                         f"{1 if isinstance(labels, str) else len(labels)}")
 
 
 def _named(counts: dict, unit: str = "") -> str:
@@ -446,7 +456,8 @@ def _named(counts: dict, unit: str = "") -> str:
     return shown + (f" and {len(items) - NAMED} more" if len(items) > NAMED else "")
 
 
-def missed_landmarks(misses, labels, limit: float = MAX_LANDMARK_ERROR) -> dict:
+def missed_landmarks(misses, labels: Sequence[str],
+                     limit: float = MAX_LANDMARK_ERROR) -> dict[str, float]:
     """The landmarks missed by more than ``limit``, the worst first.
 
     Parameters
@@ -466,12 +477,15 @@ def missed_landmarks(misses, labels, limit: float = MAX_LANDMARK_ERROR) -> dict:
     >>> missed_landmarks([0.01, 0.2, 0.07], ["nose", "l_hand", "r_foot"])
     {'l_hand': 0.2, 'r_foot': 0.07}
     """
-    misses = np.asarray(misses, dtype=np.float64)
+    misses = np.asarray(misses, dtype=np.float64).reshape(-1)
+    _check_labels(labels, len(misses))
+    if not np.isfinite(misses).all():
+        raise InputError("missed_landmarks: a landmark's miss is NaN or inf")
     order = np.argsort(-misses, kind="stable")
     return {labels[i]: float(misses[i]) for i in order if misses[i] > limit}
 
 
-def nearest_landmarks(points, landmarks, labels) -> dict:
+def nearest_landmarks(points, landmarks, labels: Sequence[str]) -> dict[str, int]:
     """For points (left outside a cage, say), the label of each one's nearest landmark,
     counted: which parts of the body they belong to.
 
@@ -496,9 +510,13 @@ def nearest_landmarks(points, landmarks, labels) -> dict:
     from scipy.spatial import cKDTree
 
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    landmarks = np.asarray(landmarks, dtype=np.float64).reshape(-1, 3)
+    _check_labels(labels, len(landmarks))
+    if not (np.isfinite(points).all() and np.isfinite(landmarks).all()):
+        raise InputError("nearest_landmarks: the points or the landmarks hold NaN or inf")
     if not len(points):
         return {}
-    _, nearest = cKDTree(np.asarray(landmarks, dtype=np.float64)).query(points)
+    _, nearest = cKDTree(landmarks).query(points)
     counts = np.bincount(nearest, minlength=len(labels))
     order = np.argsort(-counts, kind="stable")
     return {labels[i]: int(counts[i]) for i in order if counts[i]}

@@ -145,11 +145,11 @@ def robust_arap(rest_v, faces, proposal, *, sigma: float, confidence=None,
     return RobustArap(vertices=X, trust=trust)
 
 
-
 def strain_trust(rest_v, proposal, edges, *, sigma: float, scale: float = 1.0) -> np.ndarray:
     """How far a proposal's edges at each point keep their rest length: ``1 / (1 + (s /
     sigma)^2)``, ``s`` the largest ``| |p_i - p_j| - scale |v_i - v_j| |`` over the point's
-    edges (1 for a point without edges, and wherever the proposal is a similarity).
+    edges (1 for a point without edges, and wherever the proposal is a similarity of the
+    rest shape by ``scale``).
 
     Parameters
     ----------
@@ -162,6 +162,12 @@ def strain_trust(rest_v, proposal, edges, *, sigma: float, scale: float = 1.0) -
     -------
     (n,) float64 in (0, 1]
 
+    Raises
+    ------
+    InputError
+        Meshes of different shapes, NaN or inf, an edge index out of range, ``sigma`` or
+        ``scale`` not a positive number.
+
     Examples
     --------
     >>> V = np.array([[0.0, 0, 0], [1, 0, 0], [2, 0, 0]])
@@ -169,12 +175,21 @@ def strain_trust(rest_v, proposal, edges, *, sigma: float, scale: float = 1.0) -
     >>> strain_trust(V, P, np.array([[0, 1], [1, 2]]), sigma=1.0).round(2).tolist()
     [1.0, 0.1, 0.1]
     """
-    n = len(rest_v)
+    V, P = as_vertices(rest_v, "rest_v"), as_vertices(proposal, "proposal")
+    if V.shape != P.shape or not (np.isfinite(V).all() and np.isfinite(P).all()):
+        raise InputError(f"strain_trust needs two finite meshes of one shape, got {V.shape} "
+                         f"and {P.shape}")
+    for name, value in (("sigma", sigma), ("scale", scale)):
+        if not (np.isfinite(value) and value > 0):
+            raise InputError(f"{name} must be a positive number, got {value!r}")
+    n = len(V)
     E = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    if len(E) and (E.min() < 0 or E.max() >= n):
+        raise InputError(f"an edge names a vertex outside 0..{n - 1}")
     s = np.zeros(n)
     if len(E):
-        excess = np.abs(np.linalg.norm(proposal[E[:, 0]] - proposal[E[:, 1]], axis=1)
-                        - scale * np.linalg.norm(rest_v[E[:, 0]] - rest_v[E[:, 1]], axis=1))
+        excess = np.abs(np.linalg.norm(P[E[:, 0]] - P[E[:, 1]], axis=1)
+                        - scale * np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1))
         np.maximum.at(s, E[:, 0], excess)
         np.maximum.at(s, E[:, 1], excess)
     return 1.0 / (1.0 + (s / sigma) ** 2)

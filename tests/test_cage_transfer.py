@@ -48,14 +48,11 @@ def test_a_rigidly_rotated_limb_gets_the_rotation_not_the_offset():
     np.testing.assert_allclose(pose - pose.mean(0), moved - moved.mean(0), atol=1e-9)
     offsets = transfer_offsets(v, moved, character, Similarity.identity())
     assert np.abs((offsets - offsets.mean(0)) - (moved - moved.mean(0))).max() > 0.5
-    # its place: the root (the point the template moves least near the limb's centre, in
-    # cage coordinates) keeps the offsets rule's position: the character's root plus the
-    # template's displacement there
+    # its place: the root, the point the template moves least, is at the limb's root (it
+    # turns about x = 0), and there the character's limb stays
     w = root_weights(v, moved, f)
-    np.testing.assert_allclose(w @ pose, w @ character + w @ (moved - v), atol=1e-9)
-    # and that root lies between the pivot and the limb's centre, nearer the pivot than
-    # the centre is
-    assert np.linalg.norm(w @ v - root) < np.linalg.norm(v.mean(0) - root)
+    assert np.linalg.norm(w @ v - root) < 0.3  # the grid's first cells: x = 0.08 on
+    assert np.linalg.norm(w @ pose - root) < 0.3
 
 
 @settings(max_examples=25, deadline=None)
@@ -143,13 +140,50 @@ def test_the_root_is_the_pivot_of_a_turn_and_the_centre_of_a_translation():
     c, s = np.cos(np.radians(30)), np.sin(np.radians(30))
     bend = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
     w = root_weights(v, _rotate_about(v, bend, pivot), f)
-    assert np.linalg.norm(w @ v - pivot) < 0.05
+    assert np.linalg.norm(w @ v - pivot) < 0.1
     twist = np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
     w = root_weights(v, _rotate_about(v, twist, pivot), f)
     assert np.linalg.norm(w @ v - centre) < 0.05
     w = root_weights(v, v + np.array([0.3, -2.0, 1.0]), f)
     assert np.linalg.norm(w @ v - centre) < 0.05
     np.testing.assert_allclose(w.sum(), 1.0, atol=1e-12)
+
+
+def test_the_root_moves_continuously_when_two_ends_take_turns_standing_still():
+    # the left end lifted by t, the right by 1 - t (a walk's feet): the root goes from one
+    # end to the other as t grows, without a jump at any step however fine
+    v, f = box_cage()
+    v = v * np.array([2.0, 0.5, 0.5])  # 4 long in x, centred
+    left = v[:, 0] < 0
+
+    def root_x(ts):
+        moved = [v + np.outer(np.where(left, t, 1 - t), [0.0, 1.0, 0.0]) for t in ts]
+        return np.array([(root_weights(v, m, f) @ v)[0] for m in moved])
+
+    x = root_x([0.0, 1.0])
+    assert x[0] < -1.5 and x[-1] > 1.5  # the still end, each time
+    # zoom into the steepest step, 20 times finer each time: a continuous root's steps
+    # shrink with the step (at the last zoom 0.05 of the one before; a hard choice of the
+    # best points, piecewise constant, keeps jumping: 0.77)
+    a, b, steepest = 0.0, 1.0, []
+    for _ in range(4):
+        ts = np.linspace(a, b, 21)
+        steps = np.abs(np.diff(root_x(ts)))
+        steepest.append(steps.max())
+        a, b = ts[steps.argmax()], ts[steps.argmax() + 1]
+    assert steepest[-1] < 0.2 * steepest[-2], steepest
+
+
+def test_root_weights_refuses_what_has_no_root():
+    v, f = box_cage()
+    with pytest.raises(InputError, match="same vertex count"):
+        root_weights(v, v[:-1], f)
+    with pytest.raises(InputError, match="no face"):
+        root_weights(v, v, f, part=[0, 1, 2])
+    with pytest.raises(InputError, match="no extent"):
+        root_weights(np.zeros((8, 3)), np.zeros((8, 3)), f)
+    with pytest.raises(InputError, match="NaN"):
+        root_weights(v, np.where(v > 0.4, np.nan, v), f)
 
 
 def test_each_cage_component_keeps_its_own_translation():

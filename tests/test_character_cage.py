@@ -285,3 +285,16 @@ def test_real_characters_get_valid_cages_and_are_bound_along_their_surface(name)
 
     assert torn(dt.transfer(char, C, refine=False)) > 0.01
     assert torn(dt.transfer(char, C)) < 0.003
+
+
+def test_the_label_helpers_refuse_labels_that_do_not_fit():
+    from cagekit.character_cage import missed_landmarks, nearest_landmarks
+
+    with pytest.raises(InputError, match="name each of the 3 landmarks, got 2"):
+        missed_landmarks([0.1, 0.2, 0.3], ["a", "b"])
+    with pytest.raises(InputError, match="NaN"):
+        missed_landmarks([0.1, np.nan], ["a", "b"])
+    with pytest.raises(InputError, match="name each of the 2 landmarks"):
+        nearest_landmarks([[0.0, 0, 0]], [[0.0, 0, 0], [1, 0, 0]], "ab")
+    with pytest.raises(InputError, match="NaN"):
+        nearest_landmarks([[np.nan, 0, 0]], [[0.0, 0, 0], [1, 0, 0]], ["a", "b"])

@@ -133,3 +133,17 @@ def test_bad_arguments_are_refused(kwargs, match):
     args = {"proposal": V, "sigma": 0.1, **kwargs}
     with pytest.raises(InputError, match=match):
         robust_arap(V, F, args.pop("proposal"), **args)
+
+
+def test_strain_trust_refuses_bad_input():
+    V = np.array([[0.0, 0, 0], [1, 0, 0], [2, 0, 0]])
+    E = np.array([[0, 1], [1, 2]])
+    for kwargs, problem in (({"sigma": 0.0}, "sigma must be a positive"),
+                            ({"sigma": float("nan")}, "sigma must be a positive"),
+                            ({"sigma": 1.0, "scale": -1.0}, "scale must be a positive")):
+        with pytest.raises(InputError, match=problem):
+            strain_trust(V, V, E, **kwargs)
+    with pytest.raises(InputError, match="one shape"):
+        strain_trust(V, V[:2], E, sigma=1.0)
+    with pytest.raises(InputError, match="outside 0..2"):
+        strain_trust(V, V, np.array([[0, 3]]), sigma=1.0)
