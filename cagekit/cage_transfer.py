@@ -24,6 +24,8 @@ Both work in the template's frame: ``alignment`` maps it to the character's.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import scipy.sparse
 import scipy.sparse.linalg
@@ -255,10 +257,31 @@ def root_weights(template_cage_v, deformed_template_cage_v, cage_f,
     >>> bool(np.linalg.norm(w @ v - pivot) < np.linalg.norm(pivot))
     True
     """
+    Cs, Ct, faces = _root_cage(template_cage_v, deformed_template_cage_v, cage_f, part)
+    W, centrality = _interior(np.ascontiguousarray(Cs).tobytes(),
+                              np.ascontiguousarray(faces, dtype=np.int64).tobytes())
+    diagonal = float(np.linalg.norm(np.ptp(Cs, axis=0)))
+    score = np.linalg.norm(W @ (Ct - Cs), axis=1) / diagonal + ROOT_CENTRE * centrality
+    # soft, so that the root moves continuously with the motion (a hard cut would jump
+    # between two equally still places, say two feet): each point weighs exp(-gap / tau),
+    # gap its score above the best, tau the gap of the best share
+    gap = score - score.min()
+    tau = max(float(np.quantile(gap, ROOT_SHARE)), 1e-9)
+    closeness = np.exp(-gap / tau)
+    weights = closeness @ W
+    return weights / weights.sum()
+
+
+@functools.lru_cache(maxsize=8)
+def _interior(cage_bytes: bytes, face_bytes: bytes) -> tuple[np.ndarray, np.ndarray]:
+    """The root's sample points inside a rest cage, once per cage (every pose of a
+    transfer shares it): their mean value coordinates ``(s, k)`` and their distances from
+    their centroid in cage diagonals ``(s,)``, both read-only."""
     from cagekit.cage import winding_numbers
     from cagekit.coords.mvc import mean_value_coordinates
 
-    Cs, Ct, faces = _root_cage(template_cage_v, deformed_template_cage_v, cage_f, part)
+    Cs = np.frombuffer(cage_bytes, dtype=np.float64).reshape(-1, 3)
+    faces = np.frombuffer(face_bytes, dtype=np.int64).reshape(-1, 3)
     lo, hi = Cs.min(axis=0), Cs.max(axis=0)
     centres = (np.arange(ROOT_GRID) + 0.5) / ROOT_GRID  # cell centres: none on a box's face
     axes = [lo[i] + centres * (hi[i] - lo[i]) for i in range(3)]
@@ -268,17 +291,10 @@ def root_weights(template_cage_v, deformed_template_cage_v, cage_f,
     if len(inside) == 0:  # a sliver thinner than the grid cells: its vertices stand in
         inside = Cs
     W = mean_value_coordinates(inside, Cs, faces, check=False)
-    diagonal = float(np.linalg.norm(hi - lo))
-    score = (np.linalg.norm(W @ (Ct - Cs), axis=1)
-             + ROOT_CENTRE * np.linalg.norm(inside - inside.mean(axis=0), axis=1)) / diagonal
-    # soft, so that the root moves continuously with the motion (a hard cut would jump
-    # between two equally still places, say two feet): each point weighs exp(-gap / tau),
-    # gap its score above the best, tau the gap of the best share
-    gap = score - score.min()
-    tau = max(float(np.quantile(gap, ROOT_SHARE)), 1e-9)
-    closeness = np.exp(-gap / tau)
-    weights = closeness @ W
-    return weights / weights.sum()
+    centrality = (np.linalg.norm(inside - inside.mean(axis=0), axis=1)
+                  / float(np.linalg.norm(hi - lo)))
+    W.flags.writeable = centrality.flags.writeable = False
+    return W, centrality
 
 
 def _root_cage(template_cage_v, deformed_template_cage_v, cage_f, part):

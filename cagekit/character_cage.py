@@ -433,12 +433,8 @@ def _landmark_labels(labels, count: int) -> list[str]:
     """``labels`` as a list of ``count`` strings (``landmark i`` when None)."""
     if labels is None:
         return [f"landmark {i}" for i in range(count)]
-    if isinstance(labels, str):
-        raise InputError("labels must be a sequence of strings, one a landmark, not one string")
-    labels = [str(label) for label in labels]
-    if len(labels) != count:
-        raise InputError(f"labels must name each of the {count} landmarks, got {len(labels)}")
-    return labels
+    _check_labels(labels, count)
+    return [str(label) for label in labels]
 
 
 def _check_labels(labels, count: int) -> None:

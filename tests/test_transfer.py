@@ -36,6 +36,14 @@ def _inputs(out):
             out / "characters" / "stocky.obj", out / "characters" / "stocky_landmarks.json"]
 
 
+def _run_with_landmarks(out, marks, path, poses, result_dir):
+    """``cagekit transfer`` on stocky with ``marks`` written to ``path`` as its landmarks."""
+    save_landmarks(path, marks)
+    inputs = _inputs(out)
+    inputs[4] = path
+    return _run([*inputs, poses, "-o", result_dir])
+
+
 def test_end_to_end_transfer_beats_the_rest_pose(data, tmp_path):
     out, _ = data
     result = _run([*_inputs(out), out / "poses", "-o", tmp_path / "res", "--json",
@@ -217,10 +225,8 @@ def test_a_cage_that_cannot_be_fitted_is_one_line_and_writes_nothing(data, tmp_p
     out, _ = data
     marks = load_landmarks(out / "characters" / "stocky_landmarks.json")
     mirrored = {k: v * np.array([-1.0, 1.0, 1.0]) for k, v in marks.items()}
-    save_landmarks(tmp_path / "mirrored.json", mirrored)
-    inputs = _inputs(out)
-    inputs[4] = tmp_path / "mirrored.json"
-    result = _run([*inputs, out / "poses", "-o", tmp_path / "res"])
+    result = _run_with_landmarks(out, mirrored, tmp_path / "mirrored.json", out / "poses",
+                                 tmp_path / "res")
     assert result.exit_code == 2, result.output
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and "no valid character cage" in lines[0], lines
@@ -288,10 +294,8 @@ def test_unmatched_labels_are_reported(data, tmp_path):
     marks = load_landmarks(out / "characters" / "stocky_landmarks.json")
     first = next(iter(marks))
     marks["extra_point"] = marks.pop(first)
-    save_landmarks(tmp_path / "marks.csv", marks)
-    inputs = _inputs(out)
-    inputs[4] = tmp_path / "marks.csv"
-    result = _run([*inputs, out / "poses" / "pose_000.obj", "-o", tmp_path / "res"])
+    result = _run_with_landmarks(out, marks, tmp_path / "marks.csv",
+                                 out / "poses" / "pose_000.obj", tmp_path / "res")
     assert result.exit_code == 0, result.output
     report = json.loads((tmp_path / "res" / "report.json").read_text())
     assert report["landmarks"] == {"matched": 39, "template_only": [first],
@@ -302,10 +306,8 @@ def test_unmatched_labels_are_reported(data, tmp_path):
 def test_too_few_matching_landmarks_is_one_clear_line(data, tmp_path):
     out, _ = data
     marks = load_landmarks(out / "characters" / "stocky_landmarks.json")
-    save_landmarks(tmp_path / "few.json", dict(list(marks.items())[:3]))
-    inputs = _inputs(out)
-    inputs[4] = tmp_path / "few.json"
-    result = _run([*inputs, out / "poses", "-o", tmp_path / "res"])
+    result = _run_with_landmarks(out, dict(list(marks.items())[:3]), tmp_path / "few.json",
+                                 out / "poses", tmp_path / "res")
     assert result.exit_code == 2
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and "few.json" in lines[0] and "at least 4" in lines[0]
@@ -319,10 +321,9 @@ def test_landmarks_in_another_frame_than_their_mesh_are_refused_saying_so(data, 
     marks = load_landmarks(out / "characters" / "stocky_landmarks.json")
     V, _ = io.load_mesh(out / "characters" / "stocky.obj")
     shift = 1.2 * np.linalg.norm(np.ptp(V, axis=0))
-    save_landmarks(tmp_path / "moved.json", {k: v + [shift, 0, 0] for k, v in marks.items()})
-    inputs = _inputs(out)
-    inputs[4] = tmp_path / "moved.json"
-    result = _run([*inputs, out / "poses", "-o", tmp_path / "res"])
+    moved = {k: v + [shift, 0, 0] for k, v in marks.items()}
+    result = _run_with_landmarks(out, moved, tmp_path / "moved.json", out / "poses",
+                                 tmp_path / "res")
     assert result.exit_code == 2, result.output
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and "moved.json" in lines[0], lines
