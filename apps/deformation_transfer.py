@@ -30,6 +30,7 @@ from cagekit.cage import check_cage
 from cagekit.cage_transfer import transfer_cage
 from cagekit.character_cage import CharacterCageFit, fit_character_cage
 from cagekit.coords import bind
+from cagekit.datasets.humanoid import RIGID_PARTS, landmark_part
 from cagekit.deformation import deform
 from cagekit.errors import InputError
 from cagekit.frame import normalize
@@ -39,12 +40,15 @@ from cagekit.surface_binding import SurfaceBinding, bind_surface, check_coupling
 
 __all__ = ["CharacterCage", "fit_character", "check_landmarks_on_mesh", "corresponds",
            "check_model", "template_cage_classical", "classical_fitter", "template_cage_learned",
-           "transfer", "cage_oracle", "render_grid", "ROOTS", "SMOOTHNESS"]
+           "transfer", "cage_oracle", "render_grid", "landmark_parts", "PART_LANDMARKS",
+           "ROOTS", "SMOOTHNESS"]
 
 #: weight of the cage-Laplacian term of the classical template fit (the cage's own units)
 SMOOTHNESS = 1e-2
 #: L-BFGS evaluations of the Chamfer template fit (poses need more than the default 60)
 TEMPLATE_EVALUATIONS = 200
+#: fewest landmarks of one rigid part that give it a rotation (:func:`landmark_parts`)
+PART_LANDMARKS = 3
 #: where the character goes when the example moves the template's root (:func:`transfer`)
 ROOTS = ("follow", "ground")
 #: largest median distance of a mesh's landmarks from its vertices, in its bounding-box
@@ -72,6 +76,12 @@ class CharacterCage:
     binding : cagekit.surface_binding.SurfaceBinding
         The character bound to ``C_c``: mean value coordinates (or Green coordinates),
         mended along the mesh where the cage folds between touching parts.
+    parts : tuple of ((n_i, 3), (n_i, 3)) float64 pairs
+        The matched landmarks grouped by the rigid part they lie on, on the template and
+        on the character (:func:`landmark_parts`); the pose rule keeps the character's own
+        shape where its part is oriented like the template's
+        (:func:`cagekit.cage_transfer.shape_rotations`). Empty: every face takes the
+        example's rotation alone.
     """
 
     vertices: np.ndarray
@@ -82,6 +92,50 @@ class CharacterCage:
     fit: CharacterCageFit
     match: LandmarkMatch
     binding: SurfaceBinding
+    parts: tuple[tuple[np.ndarray, np.ndarray], ...] = ()
+
+
+def landmark_parts(labels, template_points, character_points) -> tuple:
+    """Matched landmarks grouped by the humanoid's rigid part they lie on.
+
+    Parameters
+    ----------
+    labels : sequence of str
+        Landmark names (:data:`cagekit.datasets.humanoid.LANDMARK_NAMES`; others are
+        left out).
+    template_points, character_points : (n, 3) array_like of float
+        Their positions on the template and on the character.
+
+    Returns
+    -------
+    tuple of ((n_i, 3), (n_i, 3)) float64 pairs
+        Per part (:data:`cagekit.datasets.humanoid.RIGID_PARTS` order) with
+        :data:`PART_LANDMARKS` or more landmarks not on a line on the template: its
+        template points and character points. Parts with fewer are left out (their faces
+        follow the nearest parts kept).
+
+    Examples
+    --------
+    >>> pts = np.eye(4)[:, :3]
+    >>> parts = landmark_parts(["head_top", "chin", "l_eye", "l_toe"], pts, 2 * pts)
+    >>> [(len(P), len(Q)) for P, Q in parts]
+    [(3, 3)]
+    """
+    P = as_vertices(template_points, "template_points")
+    Q = as_vertices(character_points, "character_points")
+    if not len(labels) == len(P) == len(Q):
+        raise InputError(f"{len(labels)} labels for {len(P)} template points and {len(Q)} "
+                         "character points")
+    of_part = np.array([landmark_part(str(label)) or "" for label in labels])
+    groups = []
+    for part in RIGID_PARTS:
+        on = of_part == part
+        if on.sum() < PART_LANDMARKS:
+            continue
+        spread = np.linalg.svd(P[on] - P[on].mean(axis=0), compute_uv=False)
+        if spread[1] > 1e-9 * spread[0]:
+            groups.append((P[on], Q[on]))
+    return tuple(groups)
 
 
 def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
@@ -156,7 +210,8 @@ def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
     fit.checks["mended"] = float(binding.mended.mean())
     return CharacterCage(vertices=character_v, faces=np.asarray(character_f, np.int64),
                          template_cage_v=cage_v, cage_v=fit.cage_v, cage_f=fit.cage_f,
-                         fit=fit, match=match, binding=binding)
+                         fit=fit, match=match, binding=binding,
+                         parts=landmark_parts(match.labels, match.source, match.target))
 
 
 def check_landmarks_on_mesh(vertices, landmarks, name: str) -> None:
@@ -378,7 +433,8 @@ def transfer(character: CharacterCage, deformed_template_cage_v,
     if root not in ROOTS:
         raise InputError(f"root must be one of {', '.join(ROOTS)}, got {root!r}")
     cage = transfer_cage(rule, character.template_cage_v, deformed_template_cage_v,
-                         character.cage_v, character.cage_f, character.fit.alignment)
+                         character.cage_v, character.cage_f, character.fit.alignment,
+                         parts=character.parts)
     X = character.binding.deform(cage, refine=refine)
     if not np.isfinite(X).all():
         raise FloatingPointError("the transfer produced NaN or inf positions")

@@ -15,8 +15,10 @@ joint rotations. Two directions:
 
 Methods, all in one run: ``rest`` (no transfer), ``nearest`` (each vertex moves like its
 nearest template vertex after the box alignment, scaled), ``offsets`` (the paper's rule),
-``unrefined`` (the pose-aware rule, the cage's result as it is), ``pose`` (the pose-aware
-rule made as rigid as possible where it tears the mesh, the default), ``learned`` (the
+``unrefined`` (the pose-aware rule, the cage's result as it is), ``no_parts`` (the
+pose-aware rule dropping every face's rest rotation, as before issue 30's third stop:
+:func:`cagekit.cage_transfer.shape_rotations` unused), ``pose`` (the pose-aware rule made
+as rigid as possible where it tears the mesh, the default), ``learned`` (the
 pose rule on the template cage predicted by a fixed-source network, trained here with the
 documented command unless ``--model`` is given; forward only: the network's source is the
 rest template). Printed per method and character: mean vertex error against the ground
@@ -34,6 +36,7 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import subprocess
@@ -56,7 +59,7 @@ from cagekit.frame import normalize  # noqa: E402
 from cagekit.landmarks import load_landmarks  # noqa: E402
 from cagekit.metrics import dcotlap  # noqa: E402
 
-METHODS = ("rest", "nearest", "offsets", "unrefined", "pose", "learned", "oracle")
+METHODS = ("rest", "nearest", "offsets", "unrefined", "no_parts", "pose", "learned", "oracle")
 #: the groups of characters, in the order of the report
 GROUPS = ("same rest pose", "unlike proportions", "own rest pose",
           "unlike proportions, own rest pose")
@@ -168,10 +171,13 @@ def run_direction(name, group, direction, template, cage, marks_t, character, ma
         t0 = time.perf_counter()
         outs["nearest"] = nearest_copy(Vt, Vp, Vc, char.fit.alignment)
         seconds["nearest"] = time.perf_counter() - t0
-        for method, rule, refine in (("offsets", "offsets", True), ("unrefined", "pose", False),
-                                     ("pose", "pose", True)):
+        whole = dataclasses.replace(char, parts=())  # every face's rest rotation dropped
+        for method, rule, refine, c in (("offsets", "offsets", True, char),
+                                        ("unrefined", "pose", False, char),
+                                        ("no_parts", "pose", True, whole),
+                                        ("pose", "pose", True, char)):
             t0 = time.perf_counter()
-            outs[method] = dt.transfer(char, cages["classical"], rule, refine=refine)
+            outs[method] = dt.transfer(c, cages["classical"], rule, refine=refine)
             seconds[method] = cages["classical_seconds"] + time.perf_counter() - t0
         if "learned" in cages:
             t0 = time.perf_counter()

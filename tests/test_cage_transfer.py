@@ -7,9 +7,12 @@ from hypothesis import given, settings
 
 from cagekit.alignment import Similarity
 from cagekit.cage_transfer import (
+    PART_ANGLE,
+    SHAPE_NOISE,
     face_gradients,
     polar,
     root_weights,
+    shape_rotations,
     transfer_cage,
     transfer_offsets,
     transfer_pose,
@@ -201,3 +204,89 @@ def test_a_vertex_no_face_uses_is_refused():
     V = np.vstack([v, [[9.0, 9, 9]]])
     with pytest.raises(InputError, match="used by no face"):
         transfer_pose(V, V, V, f, Similarity.identity())
+
+
+def _tapered():
+    """A box cage with its faces cut in 4 (faces that tilt when tapered), the part's points
+    (its vertices: symmetric about every axis, so the taper does not turn them), and the
+    cage tapered: wider at the top."""
+    import trimesh
+
+    box = trimesh.creation.box(extents=(2.0, 2.0, 2.0)).subdivide()
+    v, f = np.asarray(box.vertices, float), np.asarray(box.faces)
+    tapered = v * np.stack([1.0 + 0.8 * v[:, 1], np.ones(len(v)), np.ones(len(v))], 1)
+    return v, f, v.copy(), tapered
+
+
+def test_with_parts_a_character_keeps_its_shape_and_drops_only_its_pose():
+    v, f, points, tapered = _tapered()
+    still = Similarity.identity()
+    # a rest example: with its part the character keeps its tapered shape exactly (the
+    # taper turns the side faces; dropping those turns squares the character off)
+    out = transfer_pose(v, v, tapered, f, still, parts=[(points, tapered)])
+    np.testing.assert_allclose(out - out.mean(0), tapered - tapered.mean(0), rtol=0, atol=1e-7)
+    without = transfer_pose(v, v, tapered, f, still)
+    assert np.abs((without - without.mean(0)) - (tapered - tapered.mean(0))).max() > 0.05
+    # the template turned as a whole: the character's own shape turned the same way
+    R = random_rotation(3)
+    out = transfer_pose(v, v @ R.T, tapered, f, still, parts=[(points, tapered)])
+    expected = tapered @ R.T
+    np.testing.assert_allclose(out - out.mean(0), expected - expected.mean(0), rtol=0, atol=1e-7)
+    # the character turned 90 degrees at rest is posed otherwise: its turn is replaced as
+    # without parts (a T-pose example gives a T-pose)
+    turn = np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]])
+    turned = tapered @ turn.T
+    np.testing.assert_allclose(transfer_pose(v, v, turned, f, still, parts=[(points, turned)]),
+                               transfer_pose(v, v, turned, f, still), rtol=0, atol=1e-7)
+
+
+def _angles(R):
+    return np.degrees(np.arccos(np.clip((np.trace(R, axis1=1, axis2=2) - 1) / 2, -1, 1)))
+
+
+def test_shape_rotations_keep_in_proportion_to_the_part_s_turn():
+    v, f, points, tapered = _tapered()
+    Rc, _ = polar(face_gradients(v, tapered, f))
+    kept = shape_rotations(v, tapered, f, [(points, tapered)])
+    np.testing.assert_allclose(kept, Rc, atol=1e-9)  # the part is not turned: all kept
+    assert _angles(Rc).max() > 5
+    full = _angles(Rc)
+
+    def kept_after_turn(degrees):
+        a = np.radians(degrees)
+        turn = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+        return _angles(shape_rotations(v, tapered @ turn.T, f, [(points, tapered @ turn.T)]))
+
+    # the part's turn is taken out, then its shape kept: half of it at half PART_ANGLE
+    # (the blend of a rotation with the identity halfway is the half rotation), more for
+    # less of a turn, none beyond PART_ANGLE
+    np.testing.assert_allclose(kept_after_turn(PART_ANGLE / 2), full / 2, atol=1e-4)
+    quarter = kept_after_turn(PART_ANGLE / 4)
+    assert np.all(quarter >= full / 2 - 1e-4) and np.all(quarter <= full + 1e-4)
+    assert quarter.max() > full.max() / 2 + 1
+    np.testing.assert_allclose(kept_after_turn(1.2 * PART_ANGLE), 0, atol=1e-4)
+    # a faint taper turns faces by less than the fit's noise: nothing is kept
+    faint = v + 0.03 * (tapered - v)
+    assert 0.5 < _angles(polar(face_gradients(v, faint, f))[0]).max() < SHAPE_NOISE[0]
+    np.testing.assert_allclose(_angles(shape_rotations(v, faint, f, [(points, faint)])), 0,
+                               atol=1e-4)
+    np.testing.assert_allclose(shape_rotations(v, tapered, f, []), np.eye(3)[None]
+                               .repeat(len(f), 0))
+
+
+def test_shape_rotations_refuse_parts_without_a_rotation():
+    v, f, points, tapered = _tapered()
+    part = (points, tapered)
+    with pytest.raises(InputError, match=r"parts\[1\] needs at least 3 points"):
+        shape_rotations(v, tapered, f, [part, (points[:2], tapered[:2])])
+    line = np.outer(np.linspace(0, 0.5, 5), [1, 1, 0])
+    with pytest.raises(InputError, match=r"parts\[0\] needs at least 3 points not on a"):
+        shape_rotations(v, tapered, f, [(line, line)])
+    with pytest.raises(InputError, match="NaN"):
+        shape_rotations(v, tapered, f, [(points, np.where(tapered > 0.9, np.nan, tapered))])
+    with pytest.raises(InputError, match="26 template points and 25 character points"):
+        shape_rotations(v, tapered, f, [(points, tapered[:-1])])
+    with pytest.raises(InputError, match="must be a pair"):
+        transfer_pose(v, v, tapered, f, Similarity.identity(), parts=[points])
+    with pytest.raises(InputError, match="same vertex count"):
+        shape_rotations(v, tapered[:-1], f, [part])

@@ -427,3 +427,29 @@ def test_unlike_bodies_have_the_proportions_they_claim(body, expected):
     mine, template = _proportions(body), _proportions("template")
     for name, (low, high) in expected.items():
         assert low <= mine[name] / template[name] <= high, (name, mine[name] / template[name])
+
+
+@pytest.mark.parametrize("seed", [1, 4])
+def test_each_rigid_part_s_landmarks_move_nearly_rigidly(template, seed):
+    # landmark_part groups the landmarks by the bones that carry them: the best rigid
+    # motion of one part's landmarks misses them by little (the hand's fingers bend, the
+    # torso's ends blend with the limbs), that of all landmarks by much
+    from cagekit.geometry import polar
+
+    posed, height = template.pose(hm.random_pose(seed)), np.ptp(template.vertices[:, 1])
+
+    def rigid_miss(names):
+        idx = [template.landmarks[n] for n in names]
+        P = template.vertices[idx] - template.vertices[idx].mean(0)
+        Q = posed[idx] - posed[idx].mean(0)
+        R = polar((Q.T @ P)[None])[0][0]
+        return np.sqrt(((P @ R.T - Q) ** 2).sum(1).mean()) / height
+
+    for part in hm.RIGID_PARTS:
+        names = [n for n in LANDMARK_NAMES if hm.landmark_part(n) == part]
+        assert len(names) >= 4, part
+        assert rigid_miss(names) < 0.03, part
+    assert {hm.landmark_part(n) for n in LANDMARK_NAMES} == set(hm.RIGID_PARTS)
+    assert rigid_miss(LANDMARK_NAMES) > 0.1
+    assert hm.landmark_part("l_upper_arm_mid_outer") == "l_upper_arm"
+    assert hm.landmark_part("not_a_landmark") is None

@@ -468,11 +468,10 @@ def test_the_cage_oracle_reproduces_a_pose_made_by_the_cage_exactly():
         dt.cage_oracle(W, np.where(truth > 0.7, np.nan, truth))
 
 
-@pytest.mark.xfail(strict=True, reason="issue 30, open: the pose rule narrows shoulders twice "
-                   "the template's by 5-8% (the cage oracle keeps them within 1%)")
-def test_twice_the_shoulders_reach_the_pose_with_their_own_width(data):
-    # the template's cage stretches its own shoulders as the arms move; a character twice as
-    # wide there must come out with its own width, not the template's nor a doubled stretch
+def _twice_the_shoulders(data, all_labels=True):
+    """The template's body with twice its shoulder width, and its character cage fitted
+    with all 161 landmark labels (the README's recipe; the fixture's 40 labels leave the
+    parts few points: 5.7% narrow in pose 9) or the fixture's."""
     import dataclasses
 
     from cagekit.datasets import humanoid
@@ -480,14 +479,62 @@ def test_twice_the_shoulders_reach_the_pose_with_their_own_width(data):
     out, _ = data
     template = io.load_mesh(out / "template.obj")
     cage = io.load_mesh(out / "template_cage.obj")
-    marks_t = load_landmarks(out / "template_landmarks.json")
     rt = humanoid.rig("template", resolution=0.5)
     assert rt.vertices.shape == template[0].shape
     body = dataclasses.replace(humanoid.BODY_SHAPES["template"], shoulder_width=0.44,
                                chest_width=0.15)
     rc = humanoid.rig(body, resolution=0.5)
-    marks_c = {k: rc.vertices[i] for k, i in rc.landmarks.items() if k in marks_t}
+    names = rt.landmarks if all_labels else load_landmarks(out / "template_landmarks.json")
+    marks_t = {k: rt.vertices[rt.landmarks[k]] for k in names}
+    marks_c = {k: rc.vertices[rc.landmarks[k]] for k in names}
     char = dt.fit_character(template[0], *cage, marks_t, rc.vertices, rc.faces, marks_c)
+    return template, cage, rt, rc, char
+
+
+def test_a_rest_example_leaves_a_character_of_the_template_s_pose_as_it_is(data):
+    # a character in the template's rest pose with a shape of its own (shoulders twice as
+    # wide): the template's rest as the example changes nothing. The landmarks' parts keep
+    # its own face rotations (its shape, but for turns under 5 degrees: partly the fit's
+    # noise); dropping them all squares its shoulders off. (With all 161 labels the chest's
+    # and pelvis's points, widened unevenly, seem turned by 5 and 2 degrees, and less of
+    # the shape is kept.)
+    import dataclasses
+
+    _, cage, _, rc, char = _twice_the_shoulders(data, all_labels=False)
+    assert len(char.parts) == 9
+    height = np.ptp(rc.vertices[:, 1])
+    kept = dt.transfer(char, cage[0], "pose", refine=False)
+    dropped = dt.transfer(dataclasses.replace(char, parts=()), cage[0], "pose", refine=False)
+    kept, dropped = (np.linalg.norm(X - rc.vertices, axis=1).mean() / height
+                     for X in (kept, dropped))
+    assert kept < 2e-3 and dropped > 5e-3 and kept < dropped / 4, (kept, dropped)
+
+
+def test_landmark_parts_group_the_matched_landmarks_by_rigid_part():
+    labels = ["l_upper_arm_mid_outer", "l_upper_arm_mid_inner", "l_upper_arm_dist_front",
+              "belly", "l_waist", "pelvis_front", "r_waist", "nose_tip", "chin", "tail"]
+    rng = np.random.default_rng(0)
+    P = rng.normal(size=(len(labels), 3))
+    parts = dt.landmark_parts(labels, P, P + 1.0)
+    # RIGID_PARTS order: the pelvis (4) before the left upper arm (3); the head (2) and
+    # the unknown label are left out
+    assert [len(p) for p, _ in parts] == [4, 3]
+    np.testing.assert_array_equal(parts[1][0], P[:3])
+    np.testing.assert_array_equal(parts[1][1], P[:3] + 1.0)
+    line = P.copy()
+    line[:3] = np.outer([0.0, 1.0, 2.0], [1.0, 0.0, 0.0])  # the arm's points on a line
+    assert [len(p) for p, _ in dt.landmark_parts(labels, line, line)] == [4]
+    with pytest.raises(InputError, match="10 labels for 10 template points and 9"):
+        dt.landmark_parts(labels, P, P[:9])
+
+
+def test_twice_the_shoulders_reach_the_pose_with_their_own_width(data):
+    # the template's cage stretches its own shoulders as the arms move; a character twice as
+    # wide there must come out with its own width, not the template's nor a doubled stretch
+    # (its shoulders' slope kept by the chest's part: without parts 5-9% narrow)
+    from cagekit.datasets import humanoid
+
+    template, cage, rt, rc, char = _twice_the_shoulders(data)
     l, r = rc.landmarks["l_shoulder_top"], rc.landmarks["r_shoulder_top"]
     for seed in (4, 9):
         pose = humanoid.random_pose(seed)

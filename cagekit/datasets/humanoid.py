@@ -36,7 +36,8 @@ from functools import lru_cache
 import numpy as np
 
 __all__ = ["BODY_SHAPES", "JOINTS", "LANDMARK_NAMES", "NOVEL_BODIES", "UNLIKE_BODIES", "PARENTS",
-           "BodyShape", "Rig", "humanoid", "random_body", "random_pose", "rig", "rotation_matrix"]
+           "RIGID_PARTS", "BodyShape", "Rig", "humanoid", "landmark_part", "random_body",
+           "random_pose", "rig", "rotation_matrix"]
 
 _Mesh = tuple[np.ndarray, np.ndarray]
 
@@ -785,6 +786,53 @@ def _landmark_specs() -> list[tuple[str, str, object, float]]:
 
 LANDMARK_NAMES: tuple[str, ...] = tuple(name for name, *_ in _landmark_specs())
 """All landmark names in a fixed order (161): 96 limb points, then the rest."""
+
+RIGID_PARTS: tuple[str, ...] = ("head", "chest", "pelvis", *(
+    f"{side}_{part}" for side in "lr"
+    for part in ("upper_arm", "forearm", "hand", "thigh", "shin", "foot")))
+"""The parts of the body that move rigidly, as :func:`landmark_part` names them."""
+
+# the torso's landmarks that move with the chest (the rest move with the pelvis); the
+# shoulder tops sit on the arm's first ring but turn with the chest more than the arm
+_CHEST_LANDMARKS = frozenset({"chest_front", "l_chest", "r_chest", "back_upper",
+                              "l_shoulder_top", "r_shoulder_top"})
+
+
+def landmark_part(name: str) -> str | None:
+    """The rigid part of the body a landmark lies on.
+
+    Parameters
+    ----------
+    name : str
+        A landmark name of :data:`LANDMARK_NAMES`.
+
+    Returns
+    -------
+    str or None
+        One of :data:`RIGID_PARTS` (fingers and palm are the hand, the neck and upper torso
+        the chest, the lower torso the pelvis); None for a name the humanoid does not have.
+
+    Examples
+    --------
+    >>> landmark_part("l_index_tip"), landmark_part("neck_back"), landmark_part("belly")
+    ('l_hand', 'chest', 'pelvis')
+    >>> landmark_part("tail_tip") is None
+    True
+    """
+    return _LANDMARK_PARTS.get(name)
+
+
+def _rigid_part(name: str, part: str) -> str:
+    if name in _CHEST_LANDMARKS or part == "neck":
+        return "chest"
+    if part == "torso":
+        return "pelvis"
+    if part[:2] in ("l_", "r_") and part[2:] in ("palm", *_FINGERS):
+        return f"{part[:2]}hand"
+    return part
+
+
+_LANDMARK_PARTS = {name: _rigid_part(name, part) for name, part, *_ in _landmark_specs()}
 
 
 def _landmark_local(spec, counts) -> int:
