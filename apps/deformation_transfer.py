@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cagekit.cage import check_cage
-from cagekit.cage_transfer import transfer_cage
+from cagekit.cage_transfer import has_rotation, transfer_cage
 from cagekit.character_cage import CharacterCageFit, fit_character_cage
 from cagekit.coords import bind
 from cagekit.datasets.humanoid import RIGID_PARTS, landmark_part
@@ -110,9 +110,9 @@ def landmark_parts(labels, template_points, character_points) -> tuple:
     -------
     tuple of ((n_i, 3), (n_i, 3)) float64 pairs
         Per part (:data:`cagekit.datasets.humanoid.RIGID_PARTS` order) with
-        :data:`PART_LANDMARKS` or more landmarks not on a line on the template: its
-        template points and character points. Parts with fewer are left out (their faces
-        follow the nearest parts kept).
+        :data:`PART_LANDMARKS` or more landmarks, not nearly on a line on either mesh
+        (:func:`cagekit.cage_transfer.has_rotation`): its template points and character
+        points. Other parts are left out (their faces follow the nearest parts kept).
 
     Examples
     --------
@@ -130,10 +130,7 @@ def landmark_parts(labels, template_points, character_points) -> tuple:
     groups = []
     for part in RIGID_PARTS:
         on = of_part == part
-        if on.sum() < PART_LANDMARKS:
-            continue
-        spread = np.linalg.svd(P[on] - P[on].mean(axis=0), compute_uv=False)
-        if spread[1] > 1e-9 * spread[0]:
+        if on.sum() >= PART_LANDMARKS and has_rotation(P[on]) and has_rotation(Q[on]):
             groups.append((P[on], Q[on]))
     return tuple(groups)
 

@@ -28,7 +28,8 @@ rules:
   differs. So each part's rest rotation (the best rotation of its points on the template
   onto the character's) is taken out of ``R_c`` and the rest kept: in full for a part
   not turned, in proportion for one turned less than :data:`PART_ANGLE` from the
-  template's rest, not at all from there on.
+  template's rest, not at all from there on; a face's turn of a few degrees
+  (:data:`SHAPE_NOISE`) is the fit's noise and dropped.
 
 Both work in the template's frame: ``alignment`` maps it to the character's.
 """
@@ -48,9 +49,9 @@ from cagekit.errors import InputError
 from cagekit.frame import Frame
 from cagekit.geometry import as_vertices, polar
 
-__all__ = ["RULES", "PART_ANGLE", "PART_REACH", "SHAPE_NOISE", "face_gradients", "polar",
-           "root_weights", "shape_rotations", "transfer_offsets", "transfer_pose",
-           "transfer_cage"]
+__all__ = ["RULES", "PART_ANGLE", "PART_REACH", "PART_SPREAD", "SHAPE_NOISE", "face_gradients",
+           "has_rotation", "polar", "root_weights", "shape_rotations", "transfer_offsets",
+           "transfer_pose", "transfer_cage"]
 
 #: the rules :func:`transfer_cage` knows
 RULES = ("pose", "offsets")
@@ -65,11 +66,15 @@ ROOT_GRID = 24
 ROOT_CENTRE = 0.1
 #: a part of the character turned this many degrees or more from the template's rest
 #: orientation is posed otherwise: its faces take the example's rotations alone; one turned
-#: less keeps its own rotations (its shape) in proportion (:func:`shape_rotations`)
+#: less keeps its own rotations (its shape) in proportion (:func:`shape_rotations`; chosen
+#: on a variant that carried the parts' points through the cages, docs/benchmarks.md)
 PART_ANGLE = 10.0
 #: how far a part reaches over the cage's faces beyond the part nearest to them, in
-#: template-cage diagonals (a Gaussian of the distance)
+#: template-cage diagonals (a Gaussian of the distance; chosen as PART_ANGLE was)
 PART_REACH = 0.01
+#: a part's points must spread across their line by this share of their length at least
+#: to have a rotation (:func:`has_rotation`)
+PART_SPREAD = 0.05
 #: a face's shape rotation (degrees) up to the first value is the fit's noise and dropped,
 #: from the second on it is shape and kept, in between in proportion
 #: (:func:`shape_rotations`)
@@ -202,13 +207,13 @@ def transfer_pose(template_cage_v, deformed_template_cage_v, character_cage_v, c
     if len(unused):
         raise InputError(f"cage vertex {int(unused[0])} is used by no face: its position "
                          "cannot be transferred")
+    # in a frame of unit size (the gradients are scale-free; zero-area tests are not)
+    frame = Frame.of(Cs, unit="diagonal")
     if parts is None:
         shape = np.eye(3)
     else:
         pairs = [_part_points(part, i) for i, part in enumerate(parts)]
         shape = shape_rotations(Cs, Cc, F, [(P, alignment.invert(Q)) for P, Q in pairs])
-    # in a frame of unit size (the gradients are scale-free; zero-area tests are not)
-    frame = Frame.of(Cs, unit="diagonal")
     Cs, Ct, Cc = frame.to_unit(Cs), frame.to_unit(Ct), frame.to_unit(Cc)
     Rt, St = polar(face_gradients(Cs, Ct, F))
     _, Sc = polar(face_gradients(Cs, Cc, F))
@@ -218,11 +223,11 @@ def transfer_pose(template_cage_v, deformed_template_cage_v, character_cage_v, c
     rest_edges = (D @ Cs).reshape(-1, 3, 3)
     target = np.einsum("fij,fej->fei", G, rest_edges).reshape(-1, 3)
     offsets = transfer_offsets(Cs, Ct, Cc, Similarity.identity())
-    parts = _vertex_components(len(Cs), F)
-    roots = [root_weights(Cs, Ct, F, part) for part in parts]
+    components = _vertex_components(len(Cs), F)
+    roots = [root_weights(Cs, Ct, F, component) for component in components]
     weights = np.zeros(len(Cs))
-    for part, root in zip(parts, roots):
-        weights[part] = np.abs(root)
+    for component, root in zip(components, roots):
+        weights[component] = np.abs(root)
     # min |D X - target|^2 + eps sum_i w_i |x_i - offsets_i|^2: the tiny term makes the
     # system definite; the translation is then set exactly below
     eps = 1e-8 * 6.0 * len(F) / weights.sum()
@@ -230,8 +235,8 @@ def transfer_pose(template_cage_v, deformed_template_cage_v, character_cage_v, c
     rhs = D.T @ target + eps * weights[:, None] * offsets
     X = scipy.sparse.linalg.splu(K).solve(rhs)
     # each component's root where the offsets rule puts it (its coordinates sum to one)
-    for part, root in zip(parts, roots):
-        X[part] += root @ offsets[part] - root @ X[part]
+    for component, root in zip(components, roots):
+        X[component] += root @ offsets[component] - root @ X[component]
     if not np.isfinite(X).all():
         raise FloatingPointError("the pose-aware transfer produced NaN or inf positions")
     return alignment.apply(frame.to_world(X))
@@ -248,10 +253,11 @@ def shape_rotations(template_cage_v, character_cage_v, cage_f, parts) -> np.ndar
     (``1 - angle / PART_ANGLE``); one turned more is posed otherwise and keeps none. Faces
     blend the parts' rotations and shares with Gaussian weights of their distance to each
     part's points beyond the nearest part's (:data:`PART_REACH` template-cage diagonals).
-    A face's shape rotation of under :data:`SHAPE_NOISE` ``[0]`` degrees is the cage fit's
-    noise and dropped, one over ``[1]`` kept, one in between kept in proportion: measured
-    on the humanoid benchmark, a character with the template's own body shows turns up to
-    5 degrees (median 2), and keeping them made it worse (0.99% -> 1.06% of the height).
+    Then a face's kept rotation of under :data:`SHAPE_NOISE` ``[0]`` degrees is taken for
+    the cage fit's noise and dropped, one over ``[1]`` kept, one in between kept in
+    proportion: on the humanoid benchmark, ``t_pose`` (a T rest pose, proportions near the
+    template's, remeshed) shows turns up to 5 degrees (median 2), and keeping them made it
+    worse (0.99% -> 1.06% of the height).
 
     Parameters
     ----------
@@ -262,8 +268,8 @@ def shape_rotations(template_cage_v, character_cage_v, cage_f, parts) -> np.ndar
     cage_f : (m, 3) array_like of int
     parts : sequence of ((n_i, 3), (n_i, 3)) array_like of float
         Per rigid part (a limb segment, the chest, the head): points on the template's
-        rest shape and the same points on the character's, in the template's frame; at
-        least 3 not on a line each.
+        rest shape and the same points on the character's, in the template's frame; on
+        each, at least 3 not on a line (:func:`has_rotation`).
 
     Returns
     -------
@@ -274,7 +280,7 @@ def shape_rotations(template_cage_v, character_cage_v, cage_f, parts) -> np.ndar
     ------
     InputError
         A part with fewer than 3 points, on a line, with NaN, or with point counts that
-        differ; cages that differ in vertex count.
+        differ; cages that differ in vertex count; a template cage without extent.
 
     Examples
     --------
@@ -293,9 +299,10 @@ def shape_rotations(template_cage_v, character_cage_v, cage_f, parts) -> np.ndar
     if Cs.shape != Cc.shape:
         raise InputError(f"the two cages must have the same vertex count, got {len(Cs)} "
                          f"and {len(Cc)}")
-    if not len(parts):
-        return np.broadcast_to(np.eye(3), (len(F), 3, 3)).copy()
+    Frame.of(Cs, unit="diagonal")  # refuses a cage without extent
     pairs = [_part_points(part, i) for i, part in enumerate(parts)]
+    if not pairs:
+        return np.broadcast_to(np.eye(3), (len(F), 3, 3)).copy()
     rotations = np.stack([_kabsch(P, Q) for P, Q in pairs])
     keep = np.clip(1.0 - _angles(rotations) / PART_ANGLE, 0.0, 1.0)
     # each cage vertex's distance to each part, in diagonals; a face's weights are its
@@ -309,8 +316,9 @@ def shape_rotations(template_cage_v, character_cage_v, cage_f, parts) -> np.ndar
     Rc, _ = polar(face_gradients(Cs, Cc, F))
     share = (W @ keep)[:, None, None]
     R, _ = polar((1.0 - share) * np.eye(3) + share * (np.swapaxes(Rp, 1, 2) @ Rc))
-    # the fit's noise: small turns of single faces (a character with the template's own
-    # body shows up to 5 degrees) are dropped, larger ones kept, in between in proportion
+    # the fit's noise: small turns of single faces are dropped, larger ones kept, in
+    # between in proportion (after the part's share: a part turned 8 degrees keeps 1/5 of
+    # a face's 20 degrees, 4, and the band then keeps 2/3 of that)
     low, high = SHAPE_NOISE
     signal = np.clip((_angles(R) - low) / (high - low), 0.0, 1.0)[:, None, None]
     R, _ = polar((1.0 - signal) * np.eye(3) + signal * R)
@@ -323,7 +331,35 @@ def _angles(R) -> np.ndarray:
     return np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0)))
 
 
+def has_rotation(points) -> bool:
+    """Whether points determine a rotation: 3 or more, not (nearly) on a line.
+
+    Parameters
+    ----------
+    points : (n, 3) array_like of float
+
+    Returns
+    -------
+    bool
+        True when the points' second principal spread is at least :data:`PART_SPREAD`
+        times their first (a turn about their line is then more than noise).
+
+    Examples
+    --------
+    >>> has_rotation([[0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    True
+    >>> has_rotation([[0, 0, 0], [1, 0, 0], [2, 0.01, 0]])
+    False
+    """
+    P = as_vertices(points, "points")
+    if len(P) < 3:
+        return False
+    spread = np.linalg.svd(P - P.mean(axis=0), compute_uv=False)
+    return bool(spread[1] > 0 and spread[1] >= PART_SPREAD * spread[0])
+
+
 def _part_points(part, i) -> tuple[np.ndarray, np.ndarray]:
+    """Part ``i`` as a checked pair (template points, character points), both (n_i, 3)."""
     if len(part) != 2:
         raise InputError(f"parts[{i}] must be a pair (template points, character points)")
     P = as_vertices(part[0], f"parts[{i}][0]")
@@ -331,10 +367,10 @@ def _part_points(part, i) -> tuple[np.ndarray, np.ndarray]:
     if P.shape != Q.shape:
         raise InputError(f"parts[{i}] has {len(P)} template points and {len(Q)} "
                          "character points")
-    spread = np.linalg.svd(P - P.mean(axis=0), compute_uv=False)
-    if len(P) < 3 or spread[1] <= 1e-9 * spread[0]:
-        raise InputError(f"parts[{i}] needs at least 3 points not on a line to have a "
-                         f"rotation, got {len(P)}")
+    for points, whose in ((P, "template"), (Q, "character")):
+        if not has_rotation(points):
+            raise InputError(f"parts[{i}]: its {len(points)} {whose} points lie on a line "
+                             "(or are fewer than 3): they have no rotation")
     return P, Q
 
 

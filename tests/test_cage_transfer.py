@@ -10,6 +10,7 @@ from cagekit.cage_transfer import (
     PART_ANGLE,
     SHAPE_NOISE,
     face_gradients,
+    has_rotation,
     polar,
     root_weights,
     shape_rotations,
@@ -252,36 +253,107 @@ def test_shape_rotations_keep_in_proportion_to_the_part_s_turn():
     assert _angles(Rc).max() > 5
     full = _angles(Rc)
 
-    def kept_after_turn(degrees):
+    def kept_after_turn(degrees):  # about x: the taper's own turns are about z
         a = np.radians(degrees)
-        turn = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
-        return _angles(shape_rotations(v, tapered @ turn.T, f, [(points, tapered @ turn.T)]))
+        turn = np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])
+        turned = tapered @ turn.T
+        return shape_rotations(v, turned, f, [(points, turned)])
 
-    # the part's turn is taken out, then its shape kept: half of it at half PART_ANGLE
-    # (the blend of a rotation with the identity halfway is the half rotation), more for
-    # less of a turn, none beyond PART_ANGLE
-    np.testing.assert_allclose(kept_after_turn(PART_ANGLE / 2), full / 2, atol=1e-4)
-    quarter = kept_after_turn(PART_ANGLE / 4)
+    # the part's turn is taken out (R_p^T R_c: the taper's own rotations, not turned ones),
+    # then its shape kept: half of it at half PART_ANGLE (the blend of a rotation with the
+    # identity halfway is the half rotation), more for less of a turn, none beyond
+    half, _ = polar(0.5 * np.eye(3) + 0.5 * Rc)
+    np.testing.assert_allclose(kept_after_turn(PART_ANGLE / 2), half, atol=1e-6)
+    np.testing.assert_allclose(_angles(half), full / 2, atol=1e-4)
+    quarter = _angles(kept_after_turn(PART_ANGLE / 4))
     assert np.all(quarter >= full / 2 - 1e-4) and np.all(quarter <= full + 1e-4)
     assert quarter.max() > full.max() / 2 + 1
-    np.testing.assert_allclose(kept_after_turn(1.2 * PART_ANGLE), 0, atol=1e-4)
+    np.testing.assert_allclose(_angles(kept_after_turn(1.2 * PART_ANGLE)), 0, atol=1e-4)
     # a faint taper turns faces by less than the fit's noise: nothing is kept
     faint = v + 0.03 * (tapered - v)
     assert 0.5 < _angles(polar(face_gradients(v, faint, f))[0]).max() < SHAPE_NOISE[0]
     np.testing.assert_allclose(_angles(shape_rotations(v, faint, f, [(points, faint)])), 0,
                                atol=1e-4)
+    # a taper in the noise band is kept in part: more than none, less than all
+    light = v + 0.15 * (tapered - v)
+    light_full = _angles(polar(face_gradients(v, light, f))[0])
+    band = (light_full > SHAPE_NOISE[0] + 0.5) & (light_full < SHAPE_NOISE[1] - 0.5)
+    assert band.sum() >= 4
+    light_kept = _angles(shape_rotations(v, light, f, [(points, light)]))
+    assert np.all(light_kept[band] > 0.05) and np.all(light_kept[band] < light_full[band] - 0.05)
     np.testing.assert_allclose(shape_rotations(v, tapered, f, []), np.eye(3)[None]
                                .repeat(len(f), 0))
+    np.testing.assert_allclose(shape_rotations(v, tapered, f, iter([(points, tapered)])),
+                               Rc, atol=1e-9)  # any iterable of pairs
+
+
+def test_each_face_keeps_the_shape_of_the_part_nearest_it():
+    # two parts, the bottom and the top of a tapered box; the character's top is posed
+    # otherwise (its points turned 90 degrees): faces near the bottom keep their taper,
+    # faces near the top drop it
+    import trimesh
+
+    box = trimesh.creation.box(extents=(2.0, 2.0, 2.0)).subdivide().subdivide()
+    v, f = np.asarray(box.vertices, float), np.asarray(box.faces)
+    tapered = v * np.stack([1.0 + 0.8 * v[:, 1], np.ones(len(v)), np.ones(len(v))], 1)
+    bottom, top = v[:, 1] < -0.99, v[:, 1] > 0.99
+    turn = np.array([[0.0, 0, 1], [0, 1, 0], [-1, 0, 0]])
+    parts = [(v[bottom], tapered[bottom]), (v[top], tapered[top] @ turn.T)]
+    kept = _angles(shape_rotations(v, tapered, f, parts))
+    full = _angles(polar(face_gradients(v, tapered, f))[0])
+    y = v[f, 1].max(axis=1), v[f, 1].min(axis=1)
+    low, high = (y[0] <= -0.5) & (full > 1), (y[1] >= 0.5) & (full > 1)
+    assert low.sum() >= 8 and high.sum() >= 8
+    np.testing.assert_allclose(kept[low], full[low], atol=1e-6)
+    np.testing.assert_allclose(kept[high], 0, atol=1e-6)
+
+
+def test_with_parts_the_template_s_stretch_and_turn_act_on_the_character_s_shape():
+    # a global motion L of the template and a character of the template's pose but its own
+    # shape (a taper). A turn: the result is the taper turned, exactly. A stretch: per-face
+    # gradients are exact only in their faces' planes, so no order is exact; the rule's
+    # (G = R_t S_t R_s S_c) misses L(taper) by 0.18, the shape before the stretch
+    # (R_t R_s S_t S_c) by 0.225, dropping the shape by 0.68
+    v, f, points, tapered = _tapered()
+    still = Similarity.identity()
+
+    def miss(L, parts):
+        out = transfer_pose(v, v @ L.T, tapered, f, still, parts=parts)
+        expected = tapered @ L.T
+        return np.abs((out - out.mean(0)) - (expected - expected.mean(0))).max()
+
+    turn = random_rotation(5)
+    assert miss(turn, [(points, tapered)]) < 1e-7 and miss(turn, None) > 0.4
+    stretch = turn @ np.diag([1.5, 1.0, 1.0])
+    assert miss(stretch, [(points, tapered)]) < 0.2 and miss(stretch, None) > 0.6
+
+
+def test_the_character_s_part_points_are_read_in_its_own_frame():
+    # the character's cage and points in a frame turned 30 degrees, scaled and moved from
+    # the template's: its parts are not turned, and a rest example gives it back as it is
+    v, f, points, tapered = _tapered()
+    a = np.radians(30)
+    turn = np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])
+    frame = Similarity(1.7, turn, np.array([3.0, -1.0, 2.0]))
+    character = frame.apply(tapered)
+    out = transfer_pose(v, v, character, f, frame, parts=[(points, character)])
+    np.testing.assert_allclose(out - out.mean(0), character - character.mean(0), rtol=0,
+                               atol=1e-6)
 
 
 def test_shape_rotations_refuse_parts_without_a_rotation():
     v, f, points, tapered = _tapered()
     part = (points, tapered)
-    with pytest.raises(InputError, match=r"parts\[1\] needs at least 3 points"):
+    with pytest.raises(InputError, match=r"parts\[1\]: its 2 template points lie on a line"):
         shape_rotations(v, tapered, f, [part, (points[:2], tapered[:2])])
     line = np.outer(np.linspace(0, 0.5, 5), [1, 1, 0])
-    with pytest.raises(InputError, match=r"parts\[0\] needs at least 3 points not on a"):
-        shape_rotations(v, tapered, f, [(line, line)])
+    nearly = line + np.array([0.0, 0.0, 0.01]) * np.array([[0], [1], [0], [1], [0]])
+    with pytest.raises(InputError, match=r"parts\[0\]: its 5 template points lie on a line"):
+        shape_rotations(v, tapered, f, [(nearly, nearly)])
+    with pytest.raises(InputError, match=r"parts\[0\]: its 26 character points lie on a"):
+        shape_rotations(v, tapered, f, [(points, np.zeros_like(points))])
+    assert not has_rotation(nearly) and not has_rotation(points[:2])
+    assert has_rotation(points) and has_rotation(tapered)
     with pytest.raises(InputError, match="NaN"):
         shape_rotations(v, tapered, f, [(points, np.where(tapered > 0.9, np.nan, tapered))])
     with pytest.raises(InputError, match="26 template points and 25 character points"):
