@@ -25,7 +25,8 @@ rest template). Printed per method and character: mean vertex error against the 
 truth in % of the character's height, dCotLap x1e3 (the metric of :mod:`cagekit.metrics`),
 the worst vertices, the torn edges (:func:`torn_share`), seconds per pose; the character's
 cage fit is listed apart with its checks. The real characters (no ground truth): the cage
-fit, torn edges with and without the refinement, pictures.
+fit, torn edges with and without the refinement, the separate pieces that came off
+(:func:`detached_pieces`), pictures.
 
 Usage::
 
@@ -90,6 +91,53 @@ def torn_share(rest_v, faces, out_v) -> float:
     rest = np.linalg.norm(rest_v[E[:, 0]] - rest_v[E[:, 1]], axis=1)
     now = np.linalg.norm(out_v[E[:, 0]] - out_v[E[:, 1]], axis=1)
     return float(np.mean((now > 4 * rest) & (now > 0.02 * height))) if len(E) else 0.0
+
+
+#: separate mesh pieces "touch" where their vertices lie within this share of the height
+CONTACT = 0.01
+#: a piece is detached when it opened from every piece it touched at rest by more than
+#: this share of the height (median over the touching vertices)
+DETACHED = 0.03
+
+
+def detached_pieces(rest_v, faces, out_v) -> list[float]:
+    """The gaps (in % of the height) of the mesh's separate pieces that came off.
+
+    Pieces are the connected components of the faces' edges; two touch where a vertex of
+    one lies within :data:`CONTACT` of the height of the other's at rest (3 such vertices at
+    least). A piece's gap is, over the pieces it touched, the smallest median distance
+    between those vertex pairs after the deformation; it is listed when it exceeds
+    :data:`DETACHED` (a shoe off its trouser hem, a hand left on the hip). No ground truth
+    needed.
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    E = unique_edges(faces)
+    n = len(rest_v)
+    _, piece = connected_components(coo_matrix((np.ones(len(E)), (E[:, 0], E[:, 1])),
+                                               shape=(n, n)), directed=False)
+    used = np.zeros(n, bool)
+    used[np.asarray(faces).ravel()] = True
+    height = float(np.ptp(rest_v[:, 1]))
+    members = {p: np.flatnonzero((piece == p) & used) for p in np.unique(piece[used])}
+    trees = {p: cKDTree(rest_v[m]) for p, m in members.items()}
+    gaps = []
+    for p, mine in members.items():
+        best = None
+        for q, theirs in members.items():
+            if q == p:
+                continue
+            dist, j = trees[q].query(rest_v[mine], distance_upper_bound=CONTACT * height)
+            near = np.isfinite(dist)
+            if near.sum() < 3:
+                continue
+            gap = float(np.median(np.linalg.norm(out_v[mine[near]] - out_v[theirs[j[near]]],
+                                                 axis=1)))
+            best = gap if best is None else min(best, gap)
+        if best is not None and best > DETACHED * height:
+            gaps.append(100 * best / height)
+    return sorted(gaps, reverse=True)
 
 
 #: body regions by the words of the landmark labels nearest each vertex (else torso)
@@ -486,6 +534,7 @@ def real_characters(template, cage, examples, folder) -> dict:
                      "rounds": char.fit.rounds, "credit": model.credit,
                      "torn_permille_unrefined": [1e3 * torn_share(V, F, X) for X, _ in raw],
                      "torn_permille": [1e3 * torn_share(V, F, X) for X, _ in outs],
+                     "detached_pct": [detached_pieces(V, F, X) for X, _ in outs],
                      "seconds_per_pose_unrefined": raw_seconds,
                      "seconds_per_pose": seconds,
                      "coupled": char.fit.checks["coupled"],
@@ -503,6 +552,8 @@ def real_characters(template, cage, examples, folder) -> dict:
         print(f"    torn edges per mille, unrefined {_listed(out[name]['torn_permille_unrefined'])}"
               f" ({raw_seconds:.2f} s a pose), as rigid as possible "
               f"{_listed(out[name]['torn_permille'])} ({seconds:.2f} s a pose)")
+        print("    pieces come off (gap % of the height, per pose): "
+              + "; ".join(_listed(gaps) or "none" for gaps in out[name]["detached_pct"]))
         if folder:
             path = folder / f"transfer_{name}.png"
             dt.render_grid(path, [[template] + list(examples), [(V, F)] + raw,
