@@ -25,7 +25,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 
+from apps.loose_pieces import LoosePieces, find_loose_pieces
 from cagekit.cage import check_cage
 from cagekit.cage_transfer import has_rotation, transfer_cage
 from cagekit.character_cage import CharacterCageFit, fit_character_cage
@@ -82,6 +84,9 @@ class CharacterCage:
         shape where its part is oriented like the template's
         (:func:`cagekit.cage_transfer.shape_rotations`). Empty: every face takes the
         example's rotation alone.
+    loose : apps.loose_pieces.LoosePieces or None
+        The character's separate pieces that the cage binds poorly and that follow what
+        they touch at rest (with the refinement, :func:`transfer`).
     """
 
     vertices: np.ndarray
@@ -93,6 +98,7 @@ class CharacterCage:
     match: LandmarkMatch
     binding: SurfaceBinding
     parts: tuple[tuple[np.ndarray, np.ndarray], ...] = ()
+    loose: LoosePieces | None = None
 
 
 def landmark_parts(labels, template_points, character_points) -> tuple:
@@ -205,10 +211,15 @@ def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
                            coords=coords)
     fit.checks["coupled"] = check_coupling(binding)
     fit.checks["mended"] = float(binding.mended.mean())
-    return CharacterCage(vertices=character_v, faces=np.asarray(character_f, np.int64),
-                         template_cage_v=cage_v, cage_v=fit.cage_v, cage_f=fit.cage_f,
-                         fit=fit, match=match, binding=binding,
-                         parts=landmark_parts(match.labels, match.source, match.target))
+    faces = np.asarray(character_f, np.int64)
+    nearest = cKDTree(match.target).query(character_v)[1]
+    vertex_parts = np.array([landmark_part(str(label)) or "" for label in match.labels])
+    loose = find_loose_pieces(character_v, faces, binding.mended, vertex_parts[nearest])
+    return CharacterCage(vertices=character_v, faces=faces, template_cage_v=cage_v,
+                         cage_v=fit.cage_v, cage_f=fit.cage_f, fit=fit, match=match,
+                         binding=binding,
+                         parts=landmark_parts(match.labels, match.source, match.target),
+                         loose=loose)
 
 
 def check_landmarks_on_mesh(vertices, landmarks, name: str) -> None:
@@ -412,7 +423,8 @@ def transfer(character: CharacterCage, deformed_template_cage_v,
         How the template cage's motion is carried (:mod:`cagekit.cage_transfer`).
     refine : bool, default True
         Make the cage's result as rigid as possible where it tears the mesh
-        (:meth:`cagekit.surface_binding.SurfaceBinding.deform`).
+        (:meth:`cagekit.surface_binding.SurfaceBinding.deform`), and move the loose pieces
+        back to what they touched at rest (:mod:`apps.loose_pieces`).
     root : {"follow", "ground"}, default "follow"
         Where the whole character goes when the example also moves the template's root
         (a jump, a crouch, a step): ``"follow"`` moves it as the template's root moves,
@@ -433,6 +445,8 @@ def transfer(character: CharacterCage, deformed_template_cage_v,
                          character.cage_v, character.cage_f, character.fit.alignment,
                          parts=character.parts)
     X = character.binding.deform(cage, refine=refine)
+    if refine and character.loose is not None:
+        X = character.loose.reattach(character.vertices, X)
     if not np.isfinite(X).all():
         raise FloatingPointError("the transfer produced NaN or inf positions")
     if root == "ground":

@@ -326,9 +326,13 @@ def shape_rotations(template_cage_v, character_cage_v, cage_f, parts) -> np.ndar
 
 
 def _angles(R) -> np.ndarray:
-    """The angles of rotations ``(..., 3, 3)`` in degrees."""
+    """The angles of rotations ``(..., 3, 3)`` in degrees (from both their sine and
+    cosine: an arc cosine alone turns rounding near the identity into 1e-6 degrees)."""
+    R = np.asarray(R, dtype=np.float64)
     cosine = (np.trace(R, axis1=-2, axis2=-1) - 1.0) / 2.0
-    return np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0)))
+    axial = np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0],
+                      R[..., 1, 0] - R[..., 0, 1]], axis=-1)
+    return np.degrees(np.arctan2(np.linalg.norm(axial, axis=-1) / 2.0, cosine))
 
 
 def has_rotation(points) -> bool:

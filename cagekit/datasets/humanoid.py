@@ -36,8 +36,8 @@ from functools import lru_cache
 import numpy as np
 
 __all__ = ["BODY_SHAPES", "JOINTS", "LANDMARK_NAMES", "NOVEL_BODIES", "UNLIKE_BODIES", "PARENTS",
-           "RIGID_PARTS", "BodyShape", "Rig", "humanoid", "landmark_part", "random_body",
-           "random_pose", "rig", "rotation_matrix"]
+           "RIGID_PARENTS", "RIGID_PARTS", "BodyShape", "Rig", "humanoid", "landmark_part",
+           "random_body", "random_pose", "rig", "rotation_matrix"]
 
 _Mesh = tuple[np.ndarray, np.ndarray]
 
@@ -791,6 +791,15 @@ RIGID_PARTS: tuple[str, ...] = ("head", "chest", "pelvis", *(
     f"{side}_{part}" for side in "lr"
     for part in ("upper_arm", "forearm", "hand", "thigh", "shin", "foot")))
 """The parts of the body that move rigidly, as :func:`landmark_part` names them."""
+
+RIGID_PARENTS: dict[str, str | None] = {
+    "pelvis": None, "chest": "pelvis", "head": "chest",
+    **{f"{side}_{part}": parent if parent in ("chest", "pelvis") else f"{side}_{parent}"
+       for side in "lr"
+       for part, parent in (("upper_arm", "chest"), ("forearm", "upper_arm"),
+                            ("hand", "forearm"), ("thigh", "pelvis"), ("shin", "thigh"),
+                            ("foot", "shin"))}}
+"""Rigid part -> the part it hangs from along the skeleton (``None`` for the pelvis)."""
 
 # the torso's landmarks that move with the chest (the rest move with the pelvis); the
 # shoulder tops sit on the arm's first ring but turn with the chest more than the arm

@@ -1,0 +1,116 @@
+"""Loose pieces of a character's mesh follow what they touch (apps.loose_pieces)."""
+
+import numpy as np
+import pytest
+import trimesh
+
+from apps.loose_pieces import find_loose_pieces
+from cagekit.errors import InputError
+
+
+def _box(centre):
+    """A unit box cut in 16 squares a side: 98 vertices."""
+    box = trimesh.creation.box().subdivide().subdivide()
+    return np.asarray(box.vertices) + centre, np.asarray(box.faces)
+
+
+def _mesh(*pieces):
+    """Pieces (V, F) joined into one mesh, and each piece's vertex indices."""
+    V, F, index, start = [], [], [], 0
+    for v, f in pieces:
+        V.append(v)
+        F.append(f + start)
+        index.append(np.arange(start, start + len(v)))
+        start += len(v)
+    return np.vstack(V), np.vstack(F), index
+
+
+def _triangle(corner):
+    """A triangle 0.001 off three vertices of a box face at x = corner[0] - 0.001."""
+    return (np.array([[0.0, 0.0, 0.0], [0.0, 0.25, 0.0], [0.0, 0.0, 0.25]]) + corner,
+            np.array([[0, 1, 2]]))
+
+
+def test_a_loose_piece_follows_the_well_bound_piece_it_touched():
+    V, F, (box, tri) = _mesh(_box([0, 0, 0]), _triangle([0.501, 0, 0]))
+    mended = np.isin(np.arange(len(V)), tri)
+    loose = find_loose_pieces(V, F, mended)
+    assert [p.tolist() for p in loose.pieces] == [tri.tolist()]
+    # the cage turns the box a little and lifts it; it leaves the triangle behind, turned
+    a = np.radians(10)
+    turn = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+    moved = V.copy()
+    moved[box] = V[box] @ turn.T + [0.0, 3.0, 0.0]
+    moved[tri] = V[tri] @ turn.T
+    out = loose.reattach(V, moved)
+    np.testing.assert_array_equal(out[box], moved[box])
+    # translated (the cage's turn of it kept) back against the box: the touched vertices'
+    # rest offsets restored in the median
+    shift = out[tri] - moved[tri]
+    np.testing.assert_allclose(shift, shift[[0]].repeat(3, 0), atol=1e-12)
+    gaps = np.linalg.norm(out[tri] - out[loose.touched[0]], axis=1)
+    assert np.median(gaps) < 0.01 < np.median(np.linalg.norm(moved[tri] - moved[loose.touched[0]],
+                                                            axis=1))
+
+
+def test_a_hand_on_the_hip_follows_the_wrist_not_the_hip():
+    # the hand touches the hip (pelvis) and the wrist (forearm) at rest; the arm rises, the
+    # cage leaves the hand at the hip: with the parts it follows the wrist alone
+    hip, wrist = _box([0, 0, 0]), _box([0, 1.25, 0])
+    hand = (np.array([[0.501, 0.25, 0.0], [0.501, 0.5, 0.0], [0.501, 0.25, 0.25],
+                      [0.501, 0.75, 0.0], [0.501, 1.0, 0.0], [0.501, 0.75, 0.25]]),
+            np.array([[0, 1, 2], [1, 3, 4], [3, 4, 5]]))
+    V, F, (hip_i, wrist_i, hand_i) = _mesh(hip, wrist, hand)
+    mended = np.isin(np.arange(len(V)), hand_i)
+    parts = np.full(len(V), "pelvis", dtype="<U16")
+    parts[wrist_i] = "r_forearm"
+    parts[hand_i] = "r_hand"
+    moved = V.copy()
+    moved[wrist_i] += [0.0, 2.0, 0.0]
+    out = find_loose_pieces(V, F, mended, parts).reattach(V, moved)
+    np.testing.assert_allclose(out[hand_i] - V[hand_i], [[0.0, 2.0, 0.0]] * 6, atol=1e-12)
+    # without the parts it takes the median of both: not where either is
+    both = find_loose_pieces(V, F, mended).reattach(V, moved)
+    assert np.abs(both[hand_i, 1] - out[hand_i, 1]).max() > 0.5
+
+
+def test_a_shoe_follows_its_hem_after_the_hem_follows_the_leg():
+    leg = _box([0, 0, 0])
+    hem = (np.array([[0.501, 0.0, 0.0], [0.501, 0.25, 0.0], [0.501, 0.0, 0.25],
+                     [0.7, 0.0, 0.0]]), np.array([[0, 1, 2], [0, 1, 3]]))
+    shoe = (np.array([[0.7, 0.0, 0.001], [0.7, 0.0, 0.002], [0.9, 0.1, 0.0],
+                      [0.7, 0.001, 0.0]]), np.array([[0, 1, 2], [1, 2, 3]]))
+    V, F, (leg_i, hem_i, shoe_i) = _mesh(leg, hem, shoe)
+    mended = np.isin(np.arange(len(V)), np.concatenate([hem_i, shoe_i]))
+    loose = find_loose_pieces(V, F, mended)
+    assert [p.tolist() for p in loose.pieces] == [hem_i.tolist(), shoe_i.tolist()]
+    moved = V.copy()
+    moved[leg_i] += [1.0, 0.0, 0.0]
+    out = loose.reattach(V, moved)
+    np.testing.assert_allclose(out[np.concatenate([hem_i, shoe_i])] - V[np.concatenate(
+        [hem_i, shoe_i])], [[1.0, 0.0, 0.0]] * 8, atol=1e-12)
+
+
+def test_well_bound_large_and_untouching_pieces_are_left_to_the_cage():
+    box, tri = _box([0, 0, 0]), _triangle([0.501, 0, 0])
+    far = _triangle([5.0, 0, 0])
+    V, F, (box_i, tri_i, far_i) = _mesh(box, tri, far)
+    # the triangle well bound (mended 1 of 3), the far one loose but touching nothing
+    mended = np.isin(np.arange(len(V)), np.concatenate([tri_i[:1], far_i]))
+    assert find_loose_pieces(V, F, mended).pieces == ()
+    # a mended piece of more than a tenth of the vertices is never loose: two boxes
+    V2, F2, (first, second) = _mesh(_box([0, 0, 0]), _box([1.001, 0, 0]))
+    assert find_loose_pieces(V2, F2, np.isin(np.arange(len(V2)), second)).pieces == ()
+
+
+def test_bad_input_is_refused():
+    V, F, _ = _mesh(_box([0, 0, 0]), _triangle([0.501, 0, 0]))
+    with pytest.raises(InputError, match="one flag per vertex"):
+        find_loose_pieces(V, F, np.zeros(5, bool))
+    with pytest.raises(InputError, match="one part per vertex"):
+        find_loose_pieces(V, F, np.zeros(len(V), bool), ["pelvis"] * 3)
+    loose = find_loose_pieces(V, F, np.arange(len(V)) >= 98)
+    with pytest.raises(InputError, match="101 vertices and deformed_v 100"):
+        loose.reattach(V, V[:100])
+    with pytest.raises(InputError, match="NaN"):
+        loose.reattach(V, np.where(V > 0.4, np.nan, V))
