@@ -132,13 +132,18 @@ def landmark_parts(labels, template_points, character_points) -> tuple:
     if not len(labels) == len(P) == len(Q):
         raise InputError(f"{len(labels)} labels for {len(P)} template points and {len(Q)} "
                          "character points")
-    of_part = np.array([landmark_part(str(label)) or "" for label in labels])
+    of_part = _parts_of(labels)
     groups = []
     for part in RIGID_PARTS:
         on = of_part == part
         if on.sum() >= PART_LANDMARKS and has_rotation(P[on]) and has_rotation(Q[on]):
             groups.append((P[on], Q[on]))
     return tuple(groups)
+
+
+def _parts_of(labels) -> np.ndarray:
+    """(L,) str: each landmark label's rigid part of the humanoid, ``""`` for none."""
+    return np.array([landmark_part(str(label)) or "" for label in labels], dtype="<U16")
 
 
 def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
@@ -213,7 +218,7 @@ def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
     fit.checks["mended"] = float(binding.mended.mean())
     faces = np.asarray(character_f, np.int64)
     nearest = cKDTree(match.target).query(character_v)[1]
-    vertex_parts = np.array([landmark_part(str(label)) or "" for label in match.labels])
+    vertex_parts = _parts_of(match.labels)
     loose = find_loose_pieces(character_v, faces, binding.mended, vertex_parts[nearest])
     return CharacterCage(vertices=character_v, faces=faces, template_cage_v=cage_v,
                          cage_v=fit.cage_v, cage_f=fit.cage_f, fit=fit, match=match,
@@ -445,10 +450,10 @@ def transfer(character: CharacterCage, deformed_template_cage_v,
                          character.cage_v, character.cage_f, character.fit.alignment,
                          parts=character.parts)
     X = character.binding.deform(cage, refine=refine)
-    if refine and character.loose is not None:
-        X = character.loose.reattach(character.vertices, X)
     if not np.isfinite(X).all():
         raise FloatingPointError("the transfer produced NaN or inf positions")
+    if refine and character.loose is not None:
+        X = character.loose.reattach(character.vertices, X)
     if root == "ground":
         X[:, 1] += character.vertices[:, 1].min() - X[:, 1].min()
     return X

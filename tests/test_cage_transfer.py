@@ -225,20 +225,20 @@ def test_with_parts_a_character_keeps_its_shape_and_drops_only_its_pose():
     # a rest example: with its part the character keeps its tapered shape exactly (the
     # taper turns the side faces; dropping those turns squares the character off)
     out = transfer_pose(v, v, tapered, f, still, parts=[(points, tapered)])
-    np.testing.assert_allclose(out - out.mean(0), tapered - tapered.mean(0), rtol=0, atol=1e-6)
+    np.testing.assert_allclose(out - out.mean(0), tapered - tapered.mean(0), rtol=0, atol=1e-7)
     without = transfer_pose(v, v, tapered, f, still)
     assert np.abs((without - without.mean(0)) - (tapered - tapered.mean(0))).max() > 0.05
     # the template turned as a whole: the character's own shape turned the same way
     R = random_rotation(3)
     out = transfer_pose(v, v @ R.T, tapered, f, still, parts=[(points, tapered)])
     expected = tapered @ R.T
-    np.testing.assert_allclose(out - out.mean(0), expected - expected.mean(0), rtol=0, atol=1e-6)
+    np.testing.assert_allclose(out - out.mean(0), expected - expected.mean(0), rtol=0, atol=1e-7)
     # the character turned 90 degrees at rest is posed otherwise: its turn is replaced as
     # without parts (a T-pose example gives a T-pose)
     turn = np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]])
     turned = tapered @ turn.T
     np.testing.assert_allclose(transfer_pose(v, v, turned, f, still, parts=[(points, turned)]),
-                               transfer_pose(v, v, turned, f, still), rtol=0, atol=1e-6)
+                               transfer_pose(v, v, turned, f, still), rtol=0, atol=1e-7)
 
 
 def _angles(R):
@@ -249,7 +249,7 @@ def test_shape_rotations_keep_in_proportion_to_the_part_s_turn():
     v, f, points, tapered = _tapered()
     Rc, _ = polar(face_gradients(v, tapered, f))
     kept = shape_rotations(v, tapered, f, [(points, tapered)])
-    np.testing.assert_allclose(kept, Rc, rtol=0, atol=1e-6)  # the part is not turned: all kept
+    np.testing.assert_allclose(kept, Rc, rtol=0, atol=1e-9)  # the part is not turned: all kept
     assert _angles(Rc).max() > 5
     full = _angles(Rc)
 
@@ -284,7 +284,7 @@ def test_shape_rotations_keep_in_proportion_to_the_part_s_turn():
     np.testing.assert_allclose(shape_rotations(v, tapered, f, []), np.eye(3)[None]
                                .repeat(len(f), 0))
     np.testing.assert_allclose(shape_rotations(v, tapered, f, iter([(points, tapered)])),
-                               Rc, rtol=0, atol=1e-6)  # any iterable of pairs
+                               Rc, rtol=0, atol=1e-9)  # any iterable of pairs
 
 
 def test_each_face_keeps_the_shape_of_the_part_nearest_it():

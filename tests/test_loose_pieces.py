@@ -109,8 +109,68 @@ def test_bad_input_is_refused():
         find_loose_pieces(V, F, np.zeros(5, bool))
     with pytest.raises(InputError, match="one part per vertex"):
         find_loose_pieces(V, F, np.zeros(len(V), bool), ["pelvis"] * 3)
+    with pytest.raises(InputError, match="'banana', which is no rigid part"):
+        find_loose_pieces(V, F, np.zeros(len(V), bool), ["pelvis"] * 100 + ["banana"])
+    with pytest.raises(InputError, match="faces"):
+        find_loose_pieces(V, np.vstack([F, [[0, 1, 101]]]), np.zeros(len(V), bool))
     loose = find_loose_pieces(V, F, np.arange(len(V)) >= 98)
-    with pytest.raises(InputError, match="101 vertices and deformed_v 100"):
+    with pytest.raises(InputError, match="a mesh of 101 vertices; rest_v has 101 and "
+                                         "deformed_v 100"):
         loose.reattach(V, V[:100])
+    with pytest.raises(InputError, match="rest_v has 102"):
+        loose.reattach(np.vstack([V, V[:1]]), np.vstack([V, V[:1]]))
     with pytest.raises(InputError, match="NaN"):
         loose.reattach(V, np.where(V > 0.4, np.nan, V))
+
+
+def _strip(n, x=0.501):
+    """``n`` vertices 0.001 off the box's side at x = 0.5, on its grid, joined by a strip
+    of triangles into one piece: each touches one box vertex."""
+    grid = np.array([[x, y, z] for y in (-0.5, -0.25, 0.0, 0.25, 0.5)
+                     for z in (-0.5, -0.25, 0.0, 0.25, 0.5)])[:n]
+    return grid, np.array([[k, k + 1, k + 2] for k in range(n - 2)])
+
+
+def test_the_thresholds_are_the_documented_ones():
+    from apps import loose_pieces as lp
+
+    def loose_count(n, mended_share):
+        V, F, (box, piece) = _mesh(_box([0, 0, 0]), _strip(n))
+        mended = np.zeros(len(V), bool)
+        mended[piece[:int(round(mended_share * n))]] = True
+        return len(find_loose_pieces(V, F, mended).pieces)
+
+    # half mended is loose, less is not
+    assert loose_count(4, 0.5) == 1 and loose_count(4, 0.25) == 0
+    # at most a tenth of the vertices: 10 of 108 is loose, 11 of 109 is not
+    assert loose_count(10, 1.0) == 1 and loose_count(11, 1.0) == 0
+    assert lp.LOOSE_MENDED == 0.5 and lp.LOOSE_SIZE == 0.1 and lp.CONTACT_PAIRS == 3
+
+
+def test_a_piece_needs_three_touching_pairs_and_ignores_unused_vertices():
+    box = _box([0, 0, 0])
+    # a triangle touching the box at 2 vertices only (the third 0.1 away): not followed
+    two = (np.array([[0.501, 0.0, 0.0], [0.501, 0.25, 0.0], [0.6, 0.0, 0.25]]),
+           np.array([[0, 1, 2]]))
+    V, F, (_, tri) = _mesh(box, two)
+    assert find_loose_pieces(V, F, np.isin(np.arange(len(V)), tri)).pieces == ()
+    # an unused vertex lying at the triangle is never what it follows
+    V, F, (box_i, tri) = _mesh(box, _triangle([0.501, 0, 0]))
+    V = np.vstack([V, V[tri[0]] + 0.0001])
+    mended = np.isin(np.arange(len(V)), tri)
+    loose = find_loose_pieces(V, F, mended)
+    moved = V.copy()
+    moved[box_i] += [0.0, 1.0, 0.0]
+    moved[-1] += [0.0, 100.0, 0.0]
+    np.testing.assert_allclose(loose.reattach(V, moved)[tri] - V[tri], [[0.0, 1.0, 0.0]] * 3,
+                               atol=1e-12)
+
+
+def test_the_median_ignores_a_touched_vertex_that_flew_off():
+    V, F, (box, piece) = _mesh(_box([0, 0, 0]), _strip(5))
+    loose = find_loose_pieces(V, F, np.isin(np.arange(len(V)), piece))
+    moved = V.copy()
+    moved[box] += [0.0, 0.0, 1.0]
+    moved[loose.touched[0][0]] += [0.0, 0.0, 9.0]  # one touched vertex carried far off
+    np.testing.assert_allclose(loose.reattach(V, moved)[piece] - V[piece],
+                               [[0.0, 0.0, 1.0]] * 5, atol=1e-12)

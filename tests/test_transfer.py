@@ -543,3 +543,30 @@ def test_twice_the_shoulders_reach_the_pose_with_their_own_width(data):
         X, truth = dt.transfer(char, moved, "pose"), rc.pose(pose)
         width, true_width = np.linalg.norm(X[l] - X[r]), np.linalg.norm(truth[l] - truth[r])
         assert abs(width / true_width - 1) <= 0.05, (seed, width, true_width)
+
+
+def test_the_transfer_moves_loose_pieces_back_with_the_refinement_only(data, monkeypatch):
+    from apps.loose_pieces import LoosePieces
+
+    out, _ = data
+    template = io.load_mesh(out / "template.obj")
+    cage = io.load_mesh(out / "template_cage.obj")
+    Vc, Fc = io.load_mesh(out / "characters" / "stocky.obj")
+    char = dt.fit_character(template[0], *cage, load_landmarks(out / "template_landmarks.json"),
+                            Vc, Fc, load_landmarks(out / "characters" / "stocky_landmarks.json"))
+    assert isinstance(char.loose, LoosePieces) and char.loose.n_vertices == len(Vc)
+    calls = []
+
+    def reattach(self, rest_v, deformed_v):
+        calls.append(len(rest_v))
+        return np.asarray(deformed_v) + 1.0
+
+    monkeypatch.setattr(LoosePieces, "reattach", reattach)
+    moved = dt.transfer_cage("pose", cage[0], cage[0], char.cage_v, char.cage_f,
+                             char.fit.alignment, parts=char.parts)
+    refined = dt.transfer(char, cage[0], "pose")
+    assert calls == [len(Vc)]
+    np.testing.assert_allclose(refined, char.binding.deform(moved, refine=True) + 1.0,
+                               atol=1e-9)
+    dt.transfer(char, cage[0], "pose", refine=False)
+    assert calls == [len(Vc)]  # not without the refinement
