@@ -25,11 +25,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from cagekit.cage import unique_edges
+from cagekit.cage import vertex_components
 from cagekit.datasets.humanoid import RIGID_PARENTS
 from cagekit.errors import InputError
 from cagekit.geometry import as_faces, as_vertices
@@ -211,12 +209,9 @@ def _touching(V, piece, anchors, tree, labels, reach) -> tuple[np.ndarray, np.nd
 
 def _pieces(n, F) -> tuple[list[np.ndarray], np.ndarray]:
     """The vertex indices of each connected piece of the faces, and the used vertices."""
-    E = unique_edges(F)
-    graph = coo_matrix((np.ones(len(E)), (E[:, 0], E[:, 1])), shape=(n, n))
-    _, label = connected_components(graph, directed=False)
-    used = np.zeros(n, dtype=bool)
-    used[F.ravel()] = True
-    return [np.flatnonzero((label == c) & used) for c in np.unique(label[used])], used
+    label = vertex_components(n, F)
+    used = label >= 0
+    return [np.flatnonzero(label == c) for c in np.unique(label[used])], used
 
 
 def _common(labels) -> str:

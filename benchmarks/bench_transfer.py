@@ -53,7 +53,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from apps import deformation_transfer as dt  # noqa: E402
 from apps import humanoid_data  # noqa: E402
 from cagekit import io  # noqa: E402
-from cagekit.cage import unique_edges  # noqa: E402
+from cagekit.cage import unique_edges, vertex_components  # noqa: E402
 from cagekit.datasets import characters, humanoid  # noqa: E402
 from cagekit.errors import CageFitError  # noqa: E402
 from cagekit.frame import normalize  # noqa: E402
@@ -110,17 +110,9 @@ def detached_pieces(rest_v, faces, out_v) -> list[float]:
     :data:`DETACHED` (a shoe off its trouser hem, a hand left on the hip). No ground truth
     needed.
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    E = unique_edges(faces)
-    n = len(rest_v)
-    _, piece = connected_components(coo_matrix((np.ones(len(E)), (E[:, 0], E[:, 1])),
-                                               shape=(n, n)), directed=False)
-    used = np.zeros(n, bool)
-    used[np.asarray(faces).ravel()] = True
+    piece = vertex_components(len(rest_v), faces)
     height = float(np.ptp(rest_v[:, 1]))
-    members = {p: np.flatnonzero((piece == p) & used) for p in np.unique(piece[used])}
+    members = {p: np.flatnonzero(piece == p) for p in np.unique(piece[piece >= 0])}
     trees = {p: cKDTree(rest_v[m]) for p, m in members.items()}
     gaps = []
     for p, mine in members.items():

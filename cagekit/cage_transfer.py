@@ -42,7 +42,7 @@ import numpy as np
 import scipy.sparse
 import scipy.sparse.linalg
 
-from cagekit.alignment import Similarity
+from cagekit.alignment import Similarity, similarity_alignment
 from cagekit.cage import face_components, winding_numbers
 from cagekit.coords.mvc import mean_value_coordinates
 from cagekit.errors import InputError
@@ -247,7 +247,8 @@ def shape_rotations(template_cage_v, character_cage_v, cage_f, parts) -> np.ndar
 
     The face's rotation from the template's rest cage to the character's (``R_c`` of the
     polar decomposition) is its part's rotation ``R_p`` (the best rotation of the part's
-    points on the template onto the same points on the character, Kabsch) times the
+    points on the template onto the same points on the character, Kabsch/Umeyama:
+    :func:`cagekit.alignment.similarity_alignment`) times the
     face's shape rotation ``R_p^T R_c``. A part turned less than :data:`PART_ANGLE` from
     the template's rest orientation keeps that shape rotation in proportion
     (``1 - angle / PART_ANGLE``); one turned more is posed otherwise and keeps none. Faces
@@ -303,7 +304,7 @@ def shape_rotations(template_cage_v, character_cage_v, cage_f, parts) -> np.ndar
     pairs = [_part_points(part, i) for i, part in enumerate(parts)]
     if not pairs:
         return np.broadcast_to(np.eye(3), (len(F), 3, 3)).copy()
-    rotations = np.stack([_kabsch(P, Q) for P, Q in pairs])
+    rotations = np.stack([similarity_alignment(P, Q).rotation for P, Q in pairs])
     keep = np.clip(1.0 - _angles(rotations) / PART_ANGLE, 0.0, 1.0)
     # each cage vertex's distance to each part, in diagonals; a face's weights are its
     # vertices' mean
@@ -376,12 +377,6 @@ def _part_points(part, i) -> tuple[np.ndarray, np.ndarray]:
             raise InputError(f"parts[{i}]: its {len(points)} {whose} points lie on a line "
                              "(or are fewer than 3): they have no rotation")
     return P, Q
-
-
-def _kabsch(P, Q) -> np.ndarray:
-    """(3, 3) the rotation best turning points ``P`` onto ``Q`` about their centroids."""
-    H = (Q - Q.mean(axis=0)).T @ (P - P.mean(axis=0))
-    return polar(H[None])[0][0]
 
 
 def _vertex_components(k, F) -> list[np.ndarray]:
