@@ -731,6 +731,66 @@ def _sigint_held():
         signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
+#: how often (seconds) a batch on a pool or an executor looks for a Ctrl-C that came
+_INTERRUPT_POLL = 0.1
+
+
+class _DeferredInterrupt:
+    """A SIGINT that came while :func:`_interrupts_deferred` held it back."""
+
+    def __init__(self, handler=None):
+        self.handler = handler  # the SIGINT handler replaced (None: nothing deferred)
+        self.came = None  # (signum, frame) of the SIGINT that came, until raised
+
+    def record(self, signum, frame) -> None:
+        """The deferring handler: the first SIGINT is kept, later ones are dropped."""
+        if self.came is None:
+            self.came = (signum, frame)
+
+    def check(self) -> None:
+        """Raise the SIGINT that came, if one did, by the handler it was kept from
+        (``KeyboardInterrupt``, or the command line's ``Interrupted``)."""
+        if self.came is not None and self.handler is not None:
+            came, self.came = self.came, None
+            self.handler(*came)
+
+
+@contextlib.contextmanager
+def _interrupts_deferred():
+    """Keep a Ctrl-C (SIGINT) from being raised inside the block, where it would land in
+    ``concurrent.futures``' own code; the block raises it, at a point of its choosing, by
+    calling the yielded object's ``check()``; one that came after the last ``check()`` is
+    raised as the block ends (unless an exception is already on its way out).
+
+    Why: Python raises a Ctrl-C at any bytecode of the main thread. Landing in
+    ``concurrent.futures.wait`` while that held some futures' locks, it left them held;
+    the pool's manager thread then blocked on one for ever, and so did the interpreter's
+    exit, which joins that thread (a batch that said ``interrupted`` and never ended, seen
+    once in CI; reproduced by slowing ``wait``'s lock-taking). Outside the main thread, or
+    where SIGINT is ignored or left to the system, nothing is deferred.
+
+    Yields
+    ------
+    _DeferredInterrupt
+    """
+    previous = signal.getsignal(signal.SIGINT) \
+        if threading.current_thread() is threading.main_thread() else None
+    if not callable(previous):
+        yield _DeferredInterrupt()
+        return
+    interrupt = _DeferredInterrupt(previous)
+    signal.signal(signal.SIGINT, interrupt.record)
+    try:
+        yield interrupt
+    except BaseException:
+        interrupt.came = None  # the exception on its way out wins
+        raise
+    finally:
+        if signal.getsignal(signal.SIGINT) == interrupt.record:  # not changed in the block
+            signal.signal(signal.SIGINT, previous)
+    interrupt.check()
+
+
 def _stop_pool(pool: cf.ProcessPoolExecutor) -> None:
     """Stop a :func:`process_pool` now: queued items cancelled, its processes ended (the
     items they run are dropped), without waiting for them to finish."""
@@ -861,7 +921,8 @@ class _Runner:
         if not self.todo:
             return
         if executor is not None:
-            self._loop(executor.submit, 2 * (workers or 2))
+            with _interrupts_deferred() as interrupt:
+                self._loop(executor.submit, 2 * (workers or 2), interrupt.check)
             return
         workers = worker_count(workers, len(self.todo))
         if workers == 1:
@@ -872,18 +933,22 @@ class _Runner:
             pool = process_pool(workers)
         except OSError as exc:
             raise _cannot_start(workers, exc) from None
-        try:
-            self._loop(_starting(pool, workers), 2 * workers)
-            pool.shutdown(wait=True)
-        except BaseException:  # Ctrl-C, an error: no worker outlives the batch
-            _stop_pool(pool)
-            raise
+        with _interrupts_deferred() as interrupt:
+            try:
+                self._loop(_starting(pool, workers), 2 * workers, interrupt.check)
+                pool.shutdown(wait=True)
+            except BaseException:  # Ctrl-C, an error: no worker outlives the batch
+                _stop_pool(pool)
+                raise
 
-    def _loop(self, submit, window):
-        """Submit items, ``window`` at most in flight, and record each as it finishes."""
+    def _loop(self, submit, window, interrupted=lambda: None):
+        """Submit items, ``window`` at most in flight, and record each as it finishes;
+        ``interrupted()`` (which raises a Ctrl-C that came) is called every
+        :data:`_INTERRUPT_POLL` seconds and after each finished item."""
         pending, fitting, running = list(self.todo), set(), {}
         try:
             while pending or running:
+                interrupted()
                 while pending and len(running) < window:
                     item = self._next(pending, fitting)
                     if item is None:
@@ -891,7 +956,8 @@ class _Runner:
                     if self.method == "cage" and not self.cages.has(item.source.name):
                         fitting.add(item.source.name)
                     running[submit(deform_item, *self._args(item))] = item
-                done, _ = cf.wait(running, return_when=cf.FIRST_COMPLETED)
+                done, _ = cf.wait(running, timeout=_INTERRUPT_POLL,
+                                  return_when=cf.FIRST_COMPLETED)
                 for future in done:
                     item = running.pop(future)
                     try:

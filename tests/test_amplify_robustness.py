@@ -259,6 +259,113 @@ def test_ctrl_c_ends_the_batch_with_one_line_and_no_process_left(tmp_path):
     assert errors == ["cagekit amplify: error: interrupted"] == one_line_messages(stderr)[-1:]
 
 
+#: runs ``cagekit amplify`` with a Ctrl-C that lands inside ``concurrent.futures.wait``
+#: while it holds the first of its futures' locks (the race CI once met by chance)
+CTRL_C_IN_WAIT = """
+import concurrent.futures._base as base, os, runpy, signal, sys
+
+def enter(self):
+    for k, future in enumerate(self.futures):
+        future._condition.acquire()
+        if k == 0 and not sent:
+            sent.append(True)
+            os.kill(os.getpid(), signal.SIGINT)  # raised here, with a future's lock held
+            for _ in range(1000):  # the bytecodes where Python runs the signal's handler
+                pass
+
+sent = []
+base._AcquireFutures.__enter__ = enter
+if __name__ == "__main__":
+    sys.argv = ["cagekit", *sys.argv[1:]]
+    runpy.run_module("cagekit.cli", run_name="__main__")
+"""
+
+
+@two_cores
+def test_a_ctrl_c_while_the_pool_s_futures_are_locked_ends_the_batch(tmp_path):
+    script = tmp_path / "ctrl_c_in_wait.py"
+    script.write_text(CTRL_C_IN_WAIT)
+    args = [sys.executable, str(script), "amplify", "synthetic:vases:3", "-o",
+            str(tmp_path / "out"), "--variations", "6", "--workers", "2"]
+    env = dict(os.environ, PYTHONPATH=ROOT + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    env.pop("CAGEKIT_DEBUG", None)
+    process = subprocess.Popen(args, env=env, stdout=subprocess.DEVNULL,
+                               stderr=subprocess.PIPE, text=True, start_new_session=True)
+    procs = []
+    try:
+        _, stderr = process.communicate(timeout=PATIENCE)  # before: never ended
+    finally:
+        procs = descendants(process)
+        if process.poll() is None:
+            process.kill()
+            stderr = "(still running)"
+        left = survivors(procs)
+    assert left == []
+    assert process.returncode == 130, stderr
+    assert one_line_messages(stderr)[-1:] == ["cagekit amplify: error: interrupted"]
+
+
+def test_a_deferred_ctrl_c_is_raised_only_where_the_batch_checks_for_it():
+    with batch._interrupts_deferred() as interrupt:
+        os.kill(os.getpid(), signal.SIGINT)
+        for _ in range(100_000):  # no KeyboardInterrupt in these bytecodes
+            pass
+        with pytest.raises(KeyboardInterrupt):
+            interrupt.check()
+        interrupt.check()  # raised once
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_a_ctrl_c_after_the_last_check_is_raised_as_the_block_ends():
+    with pytest.raises(KeyboardInterrupt):
+        with batch._interrupts_deferred():
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.01)
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_an_error_in_the_block_wins_over_a_deferred_ctrl_c():
+    with pytest.raises(ValueError):
+        with batch._interrupts_deferred():
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.01)
+            raise ValueError("the batch's own error")
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_a_handler_set_in_the_block_is_kept():
+    def mine(signum, frame):
+        raise RuntimeError("mine")
+
+    previous = signal.getsignal(signal.SIGINT)
+    try:
+        with batch._interrupts_deferred():
+            signal.signal(signal.SIGINT, mine)
+        assert signal.getsignal(signal.SIGINT) is mine
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def test_nothing_is_deferred_outside_the_main_thread_or_where_sigint_is_ignored():
+    checked = []
+
+    def in_thread():
+        with batch._interrupts_deferred() as interrupt:
+            checked.append(interrupt.handler)
+
+    thread = threading.Thread(target=in_thread)
+    thread.start()
+    thread.join()
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        with batch._interrupts_deferred() as interrupt:
+            checked.append(interrupt.handler)
+            assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert checked == [None, None]
+
+
 # ------------------------------------------------------ the output folder and collection
 
 
