@@ -1,5 +1,6 @@
-"""End-to-end applications built from :mod:`cagekit`.
+"""Applications built from :mod:`cagekit` and run from the repository, never installed.
 
-Each application lives in its own module here and is run with ``python -m apps.<name>``.
-The first, landmark-driven deformation transfer, is tracked in the project's issues.
+Each lives in its own module and runs with ``python -m apps.<name>``: the deformation
+transfer (``apps.deformation_transfer``, the same as ``cagekit transfer``), the humanoid
+data set (``apps.humanoid_data``), and the Blender add-on in ``apps/blender``.
 """

@@ -92,11 +92,11 @@ def fit(variant, cage, P, Q, X, alignment):
 
 def arms_sweep(poses: int = 5) -> list[dict]:
     """The closing-arms sweep (module docstring): one row per body and angle."""
-    from apps import deformation_transfer as dt
     from cagekit.cage_transfer import transfer_cage
     from cagekit.coords import bind
     from cagekit.datasets import characters, humanoid
     from cagekit.surface_binding import bind_surface
+    from cagekit.transfer import character as dt
 
     rig = humanoid.rig("template")
     cage_v, cage_f = humanoid_data.template_cage(rig)

@@ -167,12 +167,12 @@ def transfers(data: Path, poses: int, picture=None, shown="arms_down"):
     ``shown`` in the first four poses."""
     import bench_transfer as bt
 
-    from apps import deformation_transfer as dt
     from apps import humanoid_data
     from cagekit import io
     from cagekit.coords import bind
     from cagekit.landmarks import load_landmarks
     from cagekit.surface_binding import bind_surface
+    from cagekit.transfer import character as dt
 
     if not (data / "manifest.json").exists():
         humanoid_data.write(data, seed=0)

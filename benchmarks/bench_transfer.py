@@ -50,7 +50,6 @@ from scipy.spatial import cKDTree
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from apps import deformation_transfer as dt  # noqa: E402
 from apps import humanoid_data  # noqa: E402
 from cagekit import io  # noqa: E402
 from cagekit.cage import unique_edges, vertex_components  # noqa: E402
@@ -59,6 +58,7 @@ from cagekit.errors import CageFitError  # noqa: E402
 from cagekit.frame import normalize  # noqa: E402
 from cagekit.landmarks import load_landmarks  # noqa: E402
 from cagekit.metrics import dcotlap  # noqa: E402
+from cagekit.transfer import character as dt  # noqa: E402
 
 METHODS = ("rest", "nearest", "offsets", "unrefined", "no_parts", "pose", "learned", "oracle")
 #: the groups of characters, in the order of the report
@@ -191,8 +191,10 @@ def template_cages(template, cage, examples, model, seed) -> list[dict]:
                                                          (Vp, Fp), seed=seed, fitter=fitter)}
         entry["classical_seconds"] = time.perf_counter() - t0
         if model is not None:
+            from cagekit_learn.transfer import template_cage_learned
+
             t0 = time.perf_counter()
-            entry["learned"] = dt.template_cage_learned(model, Vt, cage_v, (Vp, Fp))
+            entry["learned"] = template_cage_learned(model, Vt, cage_v, (Vp, Fp))
             entry["learned_seconds"] = time.perf_counter() - t0
         out.append(entry)
     return out

@@ -46,7 +46,7 @@ _EXPORTS = {
 #: submodules reachable as attributes (``cagekit.io.load_mesh``) without importing them first
 _SUBMODULES = ("alignment", "cage", "coords", "datasets", "deformation", "errors", "files",
                "fitting", "frame", "geometry", "io", "landmarks", "losses", "metrics",
-               "optimize", "progress", "render", "sampling", "shapes")
+               "optimize", "progress", "render", "sampling", "shapes", "transfer")
 
 __all__ = [*_EXPORTS, *_SUBMODULES, "__version__"]
 

@@ -271,8 +271,8 @@ def test_deform_needs_one_source_and_a_target():
 def test_transfer_pose_with_landmarks_from_vertex_groups_or_files(tmp_path, landmarks):
     from builders import small_humanoid_data
 
-    from apps import deformation_transfer as dt
     from cagekit.landmarks import load_landmarks
+    from cagekit.transfer import character as dt
 
     small_humanoid_data(tmp_path)
     files = [tmp_path / "template_landmarks.json",

@@ -240,10 +240,10 @@ def test_real_characters_get_valid_cages_and_are_bound_along_their_surface(name)
     # data/characters/: arms hanging against the body (legs together for two of them);
     # the cage is valid, folds between limbs and body, and the binding is mended there
     # (docs/benchmarks.md, "Real characters")
-    from apps import deformation_transfer as dt
     from apps.humanoid_data import landmarks_of, template_cage
     from cagekit import io
     from cagekit.landmarks import load_landmarks
+    from cagekit.transfer import character as dt
 
     sys.path.insert(0, os.path.join(REPOSITORY, "data"))
     from place_character_landmarks import CHARACTERS

@@ -30,7 +30,7 @@ def module_names():
 
 def import_module(name):
     """The module ``name``, or a skip when it needs an optional library not installed."""
-    if name.startswith(("cagekit_learn", "apps.deformation_transfer")):
+    if name.startswith("cagekit_learn"):
         pytest.importorskip("torch")
     if name.startswith("apps.blender"):
         pytest.importorskip("bpy")  # the add-on (make test-blender)

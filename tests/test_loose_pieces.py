@@ -1,11 +1,11 @@
-"""Loose pieces of a character's mesh follow what they touch (apps.loose_pieces)."""
+"""Loose pieces of a character's mesh follow what they touch (cagekit.transfer.loose_pieces)."""
 
 import numpy as np
 import pytest
 import trimesh
 
-from apps.loose_pieces import find_loose_pieces
 from cagekit.errors import InputError
+from cagekit.transfer.loose_pieces import find_loose_pieces
 
 
 def _box(centre):
@@ -132,7 +132,7 @@ def _strip(n, x=0.501):
 
 
 def test_the_thresholds_are_the_documented_ones():
-    from apps import loose_pieces as lp
+    from cagekit.transfer import loose_pieces as lp
 
     def loose_count(n, mended_share):
         V, F, (box, piece) = _mesh(_box([0, 0, 0]), _strip(n))

@@ -1,4 +1,4 @@
-"""Deformation transfer to novel characters (apps.deformation_transfer, cagekit transfer)."""
+"""Deformation transfer to novel characters (cagekit.transfer, cagekit transfer)."""
 
 import json
 import subprocess
@@ -6,10 +6,9 @@ import sys
 
 import numpy as np
 import pytest
-from builders import random_rotation, small_humanoid_data
+from builders import ROOT, random_rotation, small_humanoid_data
 from click.testing import CliRunner
 
-from apps import deformation_transfer as dt
 from cagekit import io
 from cagekit.alignment import Similarity
 from cagekit.cli import main as cagekit_main
@@ -17,6 +16,7 @@ from cagekit.coords import bind
 from cagekit.errors import InputError
 from cagekit.landmarks import load_landmarks, save_landmarks
 from cagekit.surface_binding import bind_surface
+from cagekit.transfer import character as dt
 
 
 @pytest.fixture(scope="module")
@@ -365,10 +365,11 @@ def test_model_without_fixed_source_is_refused(data):
     pytest.importorskip("torch")
     (Vt, Ft), (cage_v, cage_f), _, _, _ = _character(data[0])
     from cagekit_learn.networks import ModelConfig, NeuralCages
+    from cagekit_learn.transfer import template_cage_learned
 
     model = NeuralCages(ModelConfig(bottleneck=8, decoder_widths=[8]))
     with pytest.raises(InputError, match="fixed source"):
-        dt.template_cage_learned(model, Vt, cage_v, (Vt, Ft))
+        template_cage_learned(model, Vt, cage_v, (Vt, Ft))
 
 
 def test_grid_in_a_missing_folder_is_refused_before_any_work(data, tmp_path):
@@ -389,10 +390,14 @@ def test_grid_that_is_not_png_is_refused(data, tmp_path):
     assert not (tmp_path / "res").exists() and not (tmp_path / "grid.jpg").exists()
 
 
-def test_the_old_module_command_points_to_cagekit_transfer():
-    done = subprocess.run([sys.executable, "-m", "apps.deformation_transfer"],
-                          capture_output=True, text=True)
-    assert done.returncode == 2 and "cagekit transfer" in done.stderr
+def test_the_application_runs_cagekit_transfer():
+    done = subprocess.run([sys.executable, "-m", "apps.deformation_transfer", "--help"],
+                          capture_output=True, text=True, cwd=ROOT)
+    assert done.returncode == 0, done.stderr
+    assert "TEMPLATE_LANDMARKS" in done.stdout and "--rule" in done.stdout
+    bad = subprocess.run([sys.executable, "-m", "apps.deformation_transfer", "missing.obj"],
+                         capture_output=True, text=True, cwd=ROOT)
+    assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1
 
 
 def test_corresponds_needs_the_same_vertex_count_and_faces():
@@ -546,7 +551,7 @@ def test_twice_the_shoulders_reach_the_pose_with_their_own_width(data):
 
 
 def test_the_transfer_moves_loose_pieces_back_with_the_refinement_only(data, monkeypatch):
-    from apps.loose_pieces import LoosePieces
+    from cagekit.transfer.loose_pieces import LoosePieces
 
     out, _ = data
     template = io.load_mesh(out / "template.obj")

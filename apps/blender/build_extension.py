@@ -250,7 +250,7 @@ result = bpy.ops.cagekit.fit_cage(faces=120)
 cage = bpy.data.objects[sphere.name + "_cage"]
 
 site = os.path.join(bpy.utils.user_resource("EXTENSIONS"), ".local")
-modules = ["cagekit", "apps", "scipy", "igl", "pymeshlab", "trimesh", "rtree", "nlopt",
+modules = ["cagekit", "scipy", "igl", "pymeshlab", "trimesh", "rtree", "nlopt",
            "click", "tqdm", "matplotlib", "numba", "llvmlite", "ipctk", "threadpoolctl",
            "numpy"]
 origins = {}

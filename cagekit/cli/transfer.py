@@ -1,6 +1,6 @@
 """``cagekit transfer``: carry a template's poses to a novel character given landmarks.
 
-The work is :mod:`apps.deformation_transfer`; this module reads and checks every input
+The work is :mod:`cagekit.transfer`; this module reads and checks every input
 before any work, writes the outputs atomically at the end and reports. torch is imported
 only with ``--model``.
 """
@@ -87,7 +87,7 @@ def transfer(ctx, template, template_cage, template_landmarks, character,
       cagekit transfer template.obj template_cage.obj template.json \\
           robot.obj robot.picked poses/ -o out/robot --grid out/robot.png
     """
-    from apps import deformation_transfer as dt
+    from cagekit.transfer import character as dt
 
     start_command(ctx)
     start = time.perf_counter()
@@ -181,7 +181,6 @@ def _check_outputs(out, names, grid_path, inputs):
 def _load(template, template_cage, template_landmarks, character, character_landmarks,
           pose_paths, model_path, cage_faces, seed):
     """Every input, read and checked before any work (the model too, when given)."""
-    from apps.deformation_transfer import check_model
     from cagekit import io
     from cagekit.cage import check_cage
     from cagekit.coords.binding import warn_outside
@@ -207,6 +206,7 @@ def _load(template, template_cage, template_landmarks, character, character_land
     model = None
     if model_path:
         from cagekit_learn.train import load_model
+        from cagekit_learn.transfer import check_model
 
         model = load_model(model_path)[0]
         check_model(model, Vt, cage_v, model_path)
@@ -216,8 +216,10 @@ def _load(template, template_cage, template_landmarks, character, character_land
 def _transfer_poses(char, template, template_cage, pose_paths, pose_meshes, model, rule,
                     root, seed):
     """(transferred vertices, seconds) per pose, classical or learned."""
-    from apps import deformation_transfer as dt
+    from cagekit.transfer import character as dt
 
+    if model is not None:
+        from cagekit_learn.transfer import template_cage_learned
     (Vt, Ft), (cage_v, cage_f) = template, template_cage
     fitter = dt.classical_fitter(Vt, cage_v, cage_f) if model is None else None
     results = []
@@ -229,7 +231,7 @@ def _transfer_poses(char, template, template_cage, pose_paths, pose_meshes, mode
                     deformed = dt.template_cage_classical((Vt, Ft), (cage_v, cage_f),
                                                           (Vp, Fp), seed=seed, fitter=fitter)
                 else:
-                    deformed = dt.template_cage_learned(model, Vt, cage_v, (Vp, Fp))
+                    deformed = template_cage_learned(model, Vt, cage_v, (Vp, Fp))
                 X = dt.transfer(char, deformed, rule, root=root)
             except InputError as exc:
                 raise InputError(exc.problem, path) from None  # name the pose
@@ -240,9 +242,9 @@ def _transfer_poses(char, template, template_cage, pose_paths, pose_meshes, mode
 
 def _write(out, char, pose_paths, names, results, pose_meshes, grid_path):
     """The transferred poses, the character's cage and the picture; a row per pose."""
-    from apps.deformation_transfer import render_grid
     from cagekit import io
     from cagekit.files import output_folder
+    from cagekit.transfer.character import render_grid
 
     with output_folder(out):
         rows = []

@@ -1,7 +1,7 @@
 """The add-on's operators: ``bpy.ops.cagekit.<name>()``, each with its options as properties.
 
 Every computation is cagekit's own (``cagekit.fit_cage``, ``cagekit.bind``,
-``cagekit.deform``, ``apps.deformation_transfer``, ``cagekit.amplify``); these operators
+``cagekit.deform``, ``cagekit.transfer``, ``cagekit.amplify``); these operators
 only read the scene, call it (:mod:`.jobs`) and add the results. Results are new objects
 (copies of the source, so materials, UVs and polygons are kept, with moved vertices);
 inputs are never changed, except by ``bind`` and ``unbind``, which are undoable.
@@ -224,7 +224,7 @@ def _object(name: str, role: str):
 
 class CAGEKIT_OT_transfer_pose(jobs.Job, bpy.types.Operator):
     """Carry the template's poses to a character by matching landmarks
-    (apps.deformation_transfer): one posed copy of the character per pose"""
+    (cagekit.transfer): one posed copy of the character per pose"""
 
     bl_idname = "cagekit.transfer_pose"
     bl_label = "Transfer Pose"
@@ -268,7 +268,7 @@ class CAGEKIT_OT_transfer_pose(jobs.Job, bpy.types.Operator):
                 [(p.name, meshes.world_mesh(p, "pose")) for p in poses], marks)
 
     def compute(self, inputs, progress):
-        from apps import deformation_transfer as dt
+        from cagekit.transfer import character as dt
 
         (Vt, Ft), (cv, cf), (Vc, Fc), name, poses, (marks_t, marks_c) = inputs
         progress(0, len(poses) + 1, "fitting the character's cage")
