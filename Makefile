@@ -5,9 +5,9 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: blender-venv test-blender blender-extension blender-render bench-blender demo test test-emulated test-slow lint assets bench bench-assets bench-fit-cage bench-deform bench-learn bench-transfer bench-amplify venv clean
+.PHONY: package-check blender-venv test-blender blender-extension blender-render bench-blender demo test test-emulated test-slow lint assets bench bench-assets bench-fit-cage bench-deform bench-learn bench-transfer bench-amplify venv clean
 
-$(STAMP): setup.cfg pyproject.toml
+$(STAMP): setup.cfg pyproject.toml constraints.txt constraints-common.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install -q -e '.[dev,learn,cluster]' -c constraints.txt
 	touch $(STAMP)
@@ -46,6 +46,21 @@ test-emulated: $(addprefix test-as-,$(EMULATIONS))
 test-as-%: $(STAMP)
 	@echo '== the tests as a $* CPU would run them: $(CPU_$*)'
 	env $(CPU_$*) $(BIN)/python -m pytest -q -n 2 -p no:cacheprovider tests
+
+# The package as a user installs it: python -m build makes the sdist and the wheel; each is
+# installed into a fresh venv beside older in-range versions of numpy, scipy, matplotlib and
+# trimesh (which the installation must keep) and passes tests/package_smoke.py there.
+PACKAGE_CHECK := out/package-check
+OLDER := numpy==2.3.5 scipy==1.16.3 matplotlib==3.10.7 trimesh==4.12.2
+package-check: $(STAMP)
+	rm -rf $(PACKAGE_CHECK)
+	$(BIN)/python -m build -q --outdir $(PACKAGE_CHECK)/dist .
+	$(PYTHON) -m venv $(PACKAGE_CHECK)/venv
+	$(PACKAGE_CHECK)/venv/bin/pip install -q $(OLDER)
+	$(PACKAGE_CHECK)/venv/bin/pip install -q $(PACKAGE_CHECK)/dist/cagekit-*.tar.gz
+	cd $(PACKAGE_CHECK) && venv/bin/python $(CURDIR)/tests/package_smoke.py $(CURDIR)/data/example $(OLDER)
+	$(PACKAGE_CHECK)/venv/bin/pip install -q --force-reinstall --no-deps $(PACKAGE_CHECK)/dist/cagekit-*.whl
+	cd $(PACKAGE_CHECK) && venv/bin/python $(CURDIR)/tests/package_smoke.py $(CURDIR)/data/example $(OLDER)
 
 test-slow: $(STAMP)
 	$(BIN)/python -m pytest -q -m slow tests
@@ -98,7 +113,7 @@ bench-amplify: $(STAMP)
 BLENDER_VENV := .venv-blender
 BLENDER_BIN := $(BLENDER_VENV)/bin
 BLENDER_STAMP := $(BLENDER_VENV)/.installed
-$(BLENDER_STAMP): setup.cfg pyproject.toml apps/blender/constraints.txt
+$(BLENDER_STAMP): setup.cfg pyproject.toml apps/blender/constraints.txt constraints-common.txt
 	test -x $(BLENDER_BIN)/python || $(PYTHON) -m venv $(BLENDER_VENV)
 	$(BLENDER_BIN)/pip install -q -e '.[dev,blender]' -c apps/blender/constraints.txt
 	touch $(BLENDER_STAMP)
