@@ -6,7 +6,7 @@ reverse example (the template in a rest-like pose): 39 fits. Variants, all in on
 
 - ``paper``: the paper's MVC consistency (``cagekit_learn.consistency``, torch gradients,
   L-BFGS, 300 evaluations, box alignment), nothing else;
-- ``landmarks``: ``cagekit.character_cage`` with no enclosure round (the as-similar-as-
+- ``landmarks``: ``cagekit.transfer.character_cage`` with no enclosure round (the as-similar-as-
   possible landmark fit alone, with the self-contact barrier);
 - ``full``: with the enclosure rounds (what ``cagekit transfer`` runs).
 
@@ -15,7 +15,7 @@ worst share of vertices outside, fits with crossing faces, median and worst seco
 
 Then arms closing on the body: the template and the stocky body with their arms 45 to 84
 degrees below the T (the hands reach the hips), each fitted, bound by plain mean value
-coordinates, by :func:`cagekit.surface_binding.bind_surface` (``mended``) and with its
+coordinates, by :func:`cagekit.transfer.surface_binding.bind_surface` (``mended``) and with its
 robust ARAP refinement (``refined``, the default of ``cagekit transfer``), and carried into
 5 test poses by the pose rule: cage valid, share of vertices bound through folds, vertex error
 against the truth in % of the height (mean, 99th percentile, largest).
@@ -39,11 +39,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from apps import humanoid_data  # noqa: E402
-from cagekit import character_cage as cc  # noqa: E402
 from cagekit import io  # noqa: E402
 from cagekit.alignment import box_alignment  # noqa: E402
 from cagekit.errors import CageFitError  # noqa: E402
 from cagekit.landmarks import load_landmarks, match_landmarks  # noqa: E402
+from cagekit.transfer import character_cage as cc  # noqa: E402
 
 VARIANTS = ("paper", "landmarks", "full")
 #: (body, arms below the T in degrees) of the closing-arms sweep
@@ -92,11 +92,11 @@ def fit(variant, cage, P, Q, X, alignment):
 
 def arms_sweep(poses: int = 5) -> list[dict]:
     """The closing-arms sweep (module docstring): one row per body and angle."""
-    from cagekit.cage_transfer import transfer_cage
     from cagekit.coords import bind
     from cagekit.datasets import characters, humanoid
-    from cagekit.surface_binding import bind_surface
     from cagekit.transfer import character as dt
+    from cagekit.transfer.rules import transfer_cage
+    from cagekit.transfer.surface_binding import bind_surface
 
     rig = humanoid.rig("template")
     cage_v, cage_f = humanoid_data.template_cage(rig)

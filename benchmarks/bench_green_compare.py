@@ -17,7 +17,7 @@ the rest limb and both results with their cages.
 (``apps.humanoid_data``, written when missing), forward direction (template rest -> its
 example poses, ground truth the character posed by the rig), each character's cage
 fitted once and the character bound to it by each coordinates
-(:func:`cagekit.surface_binding.bind_surface` with ``coords``); the pose rule on the
+(:func:`cagekit.transfer.surface_binding.bind_surface` with ``coords``); the pose rule on the
 classical template cage, refined (the command's default) and unrefined (the cage's result
 as it is): vertex error (% of height), dCotLap x1e3, the conformal distortion of the
 result's faces, torn edges per mille.
@@ -171,8 +171,8 @@ def transfers(data: Path, poses: int, picture=None, shown="arms_down"):
     from cagekit import io
     from cagekit.coords import bind
     from cagekit.landmarks import load_landmarks
-    from cagekit.surface_binding import bind_surface
     from cagekit.transfer import character as dt
+    from cagekit.transfer.surface_binding import bind_surface
 
     if not (data / "manifest.json").exists():
         humanoid_data.write(data, seed=0)

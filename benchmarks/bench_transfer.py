@@ -17,7 +17,7 @@ Methods, all in one run: ``rest`` (no transfer), ``nearest`` (each vertex moves 
 nearest template vertex after the box alignment, scaled), ``offsets`` (the paper's rule),
 ``unrefined`` (the pose-aware rule, the cage's result as it is), ``no_parts`` (the
 pose-aware rule dropping every face's rest rotation, as before issue 30's third stop:
-:func:`cagekit.cage_transfer.shape_rotations` unused), ``pose`` (the pose-aware rule made
+:func:`cagekit.transfer.rules.shape_rotations` unused), ``pose`` (the pose-aware rule made
 as rigid as possible where it tears the mesh, the default), ``learned`` (the
 pose rule on the template cage predicted by a fixed-source network, trained here with the
 documented command unless ``--model`` is given; forward only: the network's source is the

@@ -1,4 +1,4 @@
-"""Carrying a template cage's motion to a character's cage (cagekit.cage_transfer)."""
+"""Carrying a template cage's motion to a character's cage (cagekit.transfer.rules)."""
 
 import numpy as np
 import pytest
@@ -6,7 +6,9 @@ from builders import SEEDS, random_rotation
 from hypothesis import given, settings
 
 from cagekit.alignment import Similarity
-from cagekit.cage_transfer import (
+from cagekit.errors import InputError
+from cagekit.shapes import box_cage
+from cagekit.transfer.rules import (
     PART_ANGLE,
     SHAPE_NOISE,
     face_gradients,
@@ -18,8 +20,6 @@ from cagekit.cage_transfer import (
     transfer_offsets,
     transfer_pose,
 )
-from cagekit.errors import InputError
-from cagekit.shapes import box_cage
 
 
 def _limb():

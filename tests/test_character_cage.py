@@ -1,4 +1,4 @@
-"""Fitting the template cage to a novel character by landmarks (cagekit.character_cage)."""
+"""Fitting the template cage to a novel character by landmarks (cagekit.transfer.character_cage)."""
 
 import os
 import sys
@@ -10,14 +10,14 @@ from hypothesis import given, settings
 
 from cagekit.alignment import Similarity, box_alignment, similarity_alignment
 from cagekit.cage import self_intersecting_faces, unique_edges, winding_numbers
-from cagekit.cage_transfer import transfer_cage
-from cagekit.character_cage import cage_checks, fit_character_cage
 from cagekit.coords import bind
 from cagekit.datasets import characters, humanoid, sweethome3d
 from cagekit.datasets.humanoid_cage import humanoid_cage
 from cagekit.errors import CageFitError, CagekitWarning, InputError
 from cagekit.shapes import box_cage
-from cagekit.surface_binding import MAX_COUPLED, negative_mass
+from cagekit.transfer.character_cage import cage_checks, fit_character_cage
+from cagekit.transfer.rules import transfer_cage
+from cagekit.transfer.surface_binding import MAX_COUPLED, negative_mass
 
 
 @settings(max_examples=20, deadline=None)
@@ -288,7 +288,7 @@ def test_real_characters_get_valid_cages_and_are_bound_along_their_surface(name)
 
 
 def test_the_label_helpers_refuse_labels_that_do_not_fit():
-    from cagekit.character_cage import missed_landmarks, nearest_landmarks
+    from cagekit.transfer.character_cage import missed_landmarks, nearest_landmarks
 
     with pytest.raises(InputError, match="name each of the 3 landmarks, got 2"):
         missed_landmarks([0.1, 0.2, 0.3], ["a", "b"])

@@ -1,5 +1,5 @@
 """A deformed mesh made as rigid as possible, trusting a proposal where it agrees
-(cagekit.robust_arap)."""
+(cagekit.transfer.robust_arap)."""
 
 import numpy as np
 import pytest
@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from cagekit.errors import InputError
-from cagekit.robust_arap import robust_arap, strain_trust
+from cagekit.transfer.robust_arap import robust_arap, strain_trust
 
 
 @settings(max_examples=25, deadline=None)

@@ -1,4 +1,4 @@
-"""A mesh bound to a cage that folds between touching parts (cagekit.surface_binding)."""
+"""A mesh bound to a cage that folds between touching parts (cagekit.transfer.surface_binding)."""
 
 import numpy as np
 import pytest
@@ -8,7 +8,7 @@ from cagekit.cage import check_cage
 from cagekit.coords import bind
 from cagekit.errors import CageFitError, CagekitWarning, InputError
 from cagekit.shapes import box_cage
-from cagekit.surface_binding import (
+from cagekit.transfer.surface_binding import (
     FREE_MASS,
     MAX_COUPLED,
     SurfaceBinding,

@@ -15,8 +15,8 @@ from cagekit.cli import main as cagekit_main
 from cagekit.coords import bind
 from cagekit.errors import InputError
 from cagekit.landmarks import load_landmarks, save_landmarks
-from cagekit.surface_binding import bind_surface
 from cagekit.transfer import character as dt
+from cagekit.transfer.surface_binding import bind_surface
 
 
 @pytest.fixture(scope="module")
@@ -242,7 +242,7 @@ def test_a_binding_through_thin_folds_is_one_line_and_writes_nothing(data, tmp_p
     # what a character bound through its cage's folds over most of its surface gets
     # (tests/test_surface_binding.py shows the measure on a thin slot); here every
     # binding is declared so
-    import cagekit.surface_binding as sb
+    import cagekit.transfer.surface_binding as sb
 
     monkeypatch.setattr(sb, "MAX_COUPLED", -1.0)
     out, _ = data

@@ -2,14 +2,14 @@
 
 The template (rest pose, cage ``C_s``, example poses as meshes) and a novel character (rest
 pose, landmarks whose labels match the template's): the character's cage ``C_c`` is fitted
-once by :func:`cagekit.character_cage.fit_character_cage` (landmark reproduction, enclosure,
-no self-intersection: a valid cage or an error) and the character bound to it by
-:func:`cagekit.surface_binding.bind_surface` (mean value coordinates, mended along the mesh
-where the cage folds between a limb and the body it touches; the cage's result made as
-rigid as possible where it tears the mesh, :mod:`cagekit.robust_arap`); each pose's template cage
-``C_st`` comes from a per-pair fit (classical) or a trained fixed-source network
-(``--model``, :mod:`cagekit_learn.transfer`); the character's cage moves by a
-:mod:`cagekit.cage_transfer` rule,
+once by :func:`cagekit.transfer.character_cage.fit_character_cage` (landmark reproduction,
+enclosure, no self-intersection: a valid cage or an error) and the character bound to it by
+:func:`cagekit.transfer.surface_binding.bind_surface` (mean value coordinates, mended along
+the mesh where the cage folds between a limb and the body it touches; the cage's result made
+as rigid as possible where it tears the mesh, :mod:`cagekit.transfer.robust_arap`); each
+pose's template cage ``C_st`` comes from a per-pair fit (classical) or a trained
+fixed-source network (``--model``, :mod:`cagekit_learn.transfer`); the character's cage
+moves by a :mod:`cagekit.transfer.rules` rule,
 ``"pose"`` (default: the template's rotations with the character's own stretch, so a
 T-pose example gives a T-pose whatever the character's rest pose) or ``"offsets"`` (the
 paper's ``C_c + A (C_st - C_s)``, ``A`` the linear part of the template-to-character
@@ -29,16 +29,16 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from cagekit.cage import check_cage
-from cagekit.cage_transfer import has_rotation, transfer_cage
-from cagekit.character_cage import CharacterCageFit, fit_character_cage
 from cagekit.coords import bind
 from cagekit.datasets.humanoid import RIGID_PARTS, landmark_part
 from cagekit.deformation import deform
 from cagekit.errors import InputError
 from cagekit.geometry import as_vertices, cotangent_laplacian
 from cagekit.landmarks import LandmarkMatch, match_landmarks
-from cagekit.surface_binding import SurfaceBinding, bind_surface, check_coupling
+from cagekit.transfer.character_cage import CharacterCageFit, fit_character_cage
 from cagekit.transfer.loose_pieces import LoosePieces, find_loose_pieces
+from cagekit.transfer.rules import has_rotation, transfer_cage
+from cagekit.transfer.surface_binding import SurfaceBinding, bind_surface, check_coupling
 
 __all__ = ["CharacterCage", "fit_character", "check_landmarks_on_mesh", "corresponds",
            "template_cage_classical", "classical_fitter", "transfer", "cage_oracle",
@@ -71,17 +71,17 @@ class CharacterCage:
     cage_v : (k, 3) float64
         ``C_c``, in the character's frame.
     cage_f : (f, 3) int64
-    fit : cagekit.character_cage.CharacterCageFit
+    fit : cagekit.transfer.character_cage.CharacterCageFit
         Its landmark errors, consistency, checks and alignment.
     match : cagekit.landmarks.LandmarkMatch
-    binding : cagekit.surface_binding.SurfaceBinding
+    binding : cagekit.transfer.surface_binding.SurfaceBinding
         The character bound to ``C_c``: mean value coordinates (or Green coordinates),
         mended along the mesh where the cage folds between touching parts.
     parts : tuple of ((n_i, 3), (n_i, 3)) float64 pairs
         The matched landmarks grouped by the rigid part they lie on, on the template and
         on the character (:func:`landmark_parts`); the pose rule keeps the character's own
         shape where its part is oriented like the template's
-        (:func:`cagekit.cage_transfer.shape_rotations`). Empty: every face takes the
+        (:func:`cagekit.transfer.rules.shape_rotations`). Empty: every face takes the
         example's rotation alone.
     loose : cagekit.transfer.loose_pieces.LoosePieces or None
         The character's separate pieces that the cage binds poorly and that follow what
@@ -116,7 +116,7 @@ def landmark_parts(labels, template_points, character_points) -> tuple:
     tuple of ((n_i, 3), (n_i, 3)) float64 pairs
         Per part (:data:`cagekit.datasets.humanoid.RIGID_PARTS` order) with
         :data:`PART_LANDMARKS` or more landmarks, not nearly on a line on either mesh
-        (:func:`cagekit.cage_transfer.has_rotation`): its template points and character
+        (:func:`cagekit.transfer.rules.has_rotation`): its template points and character
         points. Other parts are left out (their faces follow the nearest parts kept).
 
     Examples
@@ -165,7 +165,7 @@ def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
         How the rest poses are aligned before the fit: bounding-box centres and heights
         (:func:`cagekit.alignment.box_alignment`), or the landmarks' similarity.
     coords : {"mvc", "green"}, default "mvc"
-        How the character follows its cage (:func:`cagekit.surface_binding.bind_surface`):
+        How the character follows its cage (:func:`cagekit.transfer.surface_binding.bind_surface`):
         mean value coordinates, or Green coordinates where no mending is needed. The
         template's own cage fit is the same either way.
     template_name, character_name : str, optional
@@ -181,7 +181,7 @@ def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
         Too few shared labels, a bad cage, shapes that cannot be aligned.
     CageFitError
         No valid character cage, or one folded between touching parts over most of the
-        character (:func:`cagekit.surface_binding.check_coupling`; the message says what
+        character (:func:`cagekit.transfer.surface_binding.check_coupling`; the message says what
         failed).
     """
     from cagekit.alignment import box_alignment, similarity_alignment
@@ -376,15 +376,15 @@ def transfer(character: CharacterCage, deformed_template_cage_v,
     deformed_template_cage_v : (k, 3) array_like of float
         ``C_st`` from :func:`template_cage_classical` or :func:`template_cage_learned`.
     rule : {"pose", "offsets"}, default "pose"
-        How the template cage's motion is carried (:mod:`cagekit.cage_transfer`).
+        How the template cage's motion is carried (:mod:`cagekit.transfer.rules`).
     refine : bool, default True
         Make the cage's result as rigid as possible where it tears the mesh
-        (:meth:`cagekit.surface_binding.SurfaceBinding.deform`), and move the loose pieces
+        (:meth:`cagekit.transfer.surface_binding.SurfaceBinding.deform`), and move the loose pieces
         back to what they touched at rest (:mod:`cagekit.transfer.loose_pieces`).
     root : {"follow", "ground"}, default "follow"
         Where the whole character goes when the example also moves the template's root
         (a jump, a crouch, a step): ``"follow"`` moves it as the template's root moves,
-        scaled by the alignment (:func:`cagekit.cage_transfer.root_weights`; the pose
+        scaled by the alignment (:func:`cagekit.transfer.rules.root_weights`; the pose
         rule pins the root, the point of the template's cage the example moves least near
         its centre); ``"ground"`` then moves every result along +y (up, the axis the
         characters stand on) until its lowest point is where its rest pose's lowest

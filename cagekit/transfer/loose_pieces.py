@@ -2,7 +2,7 @@
 
 A character's mesh is often several pieces with no edge between them: shoes, hands,
 cuffs, hems. A piece the cage binds poorly (at least :data:`LOOSE_MENDED` of its vertices
-mended by :func:`cagekit.surface_binding.bind_surface`: they lie where the cage folds
+mended by :func:`cagekit.transfer.surface_binding.bind_surface`: they lie where the cage folds
 between touching parts) has no well-bound vertex of its own to be mended from, and the
 cage can carry it off with the wrong part: a hand resting on the hip stays at the hip, a
 shoe parts from its trouser hem. Such a piece follows what it touched at rest instead: it

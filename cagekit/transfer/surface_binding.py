@@ -21,9 +21,9 @@ when the mending was needed and refuses a binding where it is most of the mesh.
 
 What the coordinates cannot see (a coat's side inside the arm's tube follows the arm) shows
 only once the cage moves: :meth:`SurfaceBinding.deform` then takes the cage's result as a
-proposal for :func:`cagekit.robust_arap.robust_arap`, which keeps the mesh locally rigid and
-lets a patch that disagrees with the surface around it follow its neighbours (mended points
-start with little trust).
+proposal for :func:`cagekit.transfer.robust_arap.robust_arap`, which keeps the mesh locally
+rigid and lets a patch that disagrees with the surface around it follow its neighbours
+(mended points start with little trust).
 
 With ``coords="green"`` the points left alone follow the cage by Green coordinates (details
 keep their proportions where the cage stretches); the mended points keep the MVC blend
@@ -142,7 +142,7 @@ class SurfaceBinding:
         ----------
         cage_v : (k, 3) array_like of float
         refine : bool, default True
-            Pass the cage's result through :func:`cagekit.robust_arap.robust_arap`
+            Pass the cage's result through :func:`cagekit.transfer.robust_arap.robust_arap`
             (``sigma`` :data:`REFINE_SIGMA` of the moved cage's size, mended points trusted
             :data:`MENDED_TRUST`); False gives the cage's result itself.
 
@@ -150,7 +150,7 @@ class SurfaceBinding:
         -------
         (n, 3) float64
         """
-        from cagekit.robust_arap import robust_arap
+        from cagekit.transfer.robust_arap import robust_arap
 
         C = np.asarray(cage_v, dtype=np.float64)
         out = self.weights @ C
