@@ -1,4 +1,4 @@
-"""Stock amplification at scale: ``cagekit.amplify`` on real chairs, 1 worker, 2 workers
+"""Stock amplification at scale: ``cagekit.batch.amplify`` on real chairs, 1 worker, 2 workers
 and a local Dask cluster of 2 workers, in one run.
 
 The collection: the chairs of Debian's ``sweethome3d-furniture`` (the three furniture
@@ -38,8 +38,8 @@ sys.path.insert(0, os.path.dirname(__file__))
 
 from bench_deform import MAX_REAL_VERTICES, furniture_kind  # noqa: E402
 
-from cagekit.amplify import amplify, prepare_worker, process_pool  # noqa: E402
-from cagekit.cluster import close, connect  # noqa: E402
+from cagekit.batch.amplify import amplify, prepare_worker, process_pool  # noqa: E402
+from cagekit.batch.cluster import close, connect  # noqa: E402
 from cagekit.io import load_mesh  # noqa: E402
 
 

@@ -44,7 +44,7 @@ _EXPORTS = {
     "OutsideCageWarning": "cagekit.errors",
 }
 #: submodules reachable as attributes (``cagekit.io.load_mesh``) without importing them first
-_SUBMODULES = ("alignment", "cage", "coords", "datasets", "deformation", "errors", "files",
+_SUBMODULES = ("alignment", "batch", "cage", "coords", "datasets", "deformation", "errors", "files",
                "fitting", "frame", "geometry", "io", "landmarks", "losses", "metrics",
                "optimize", "progress", "render", "sampling", "shapes", "transfer")
 

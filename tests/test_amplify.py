@@ -1,4 +1,4 @@
-"""Tests of cagekit.amplify, cagekit.collection and ``cagekit amplify``: plans, outputs,
+"""Tests of cagekit.batch.amplify, cagekit.batch.collection and ``cagekit amplify``: plans, outputs,
 resume after SIGKILL, isolation of broken files, the filter, determinism across worker
 counts and a real local Dask cluster."""
 
@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 from builders import ROOT, cagekit
 
-from cagekit.amplify import amplify, plan_pairs
-from cagekit.collection import find_shapes
+from cagekit.batch.amplify import amplify, plan_pairs
+from cagekit.batch.collection import find_shapes
 from cagekit.datasets import synthetic
 from cagekit.errors import InputError
 from cagekit.io import load_mesh, save_mesh

@@ -20,9 +20,9 @@ import psutil
 import pytest
 from builders import ROOT, assert_bad_input, cagekit, invoke
 
-import cagekit.amplify as batch
-from cagekit.amplify import amplify
-from cagekit.collection import find_shapes
+import cagekit.batch.amplify as batch
+from cagekit.batch.amplify import amplify
+from cagekit.batch.collection import find_shapes
 from cagekit.datasets import synthetic
 from cagekit.errors import CagekitWarning
 from cagekit.io import load_mesh, save_mesh
@@ -469,7 +469,7 @@ def test_workers_that_cannot_start_are_one_line_and_exit_2(monkeypatch, tmp_path
 
 def test_a_local_cluster_gets_no_more_workers_than_cores(monkeypatch):
     distributed = pytest.importorskip("distributed")
-    from cagekit.cluster import connect
+    from cagekit.batch.cluster import connect
 
     made = []
 

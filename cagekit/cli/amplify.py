@@ -89,8 +89,8 @@ def amplify(ctx, collection, out, variations, pairs, method, model_path, refine,
     Example:
       cagekit amplify chairs/ -o variations/ --variations 40 --contact-sheet sheet.png
     """
-    from cagekit.amplify import MAX_CD, MAX_NONAFFINITY
-    from cagekit.amplify import amplify as run_batch
+    from cagekit.batch.amplify import MAX_CD, MAX_NONAFFINITY
+    from cagekit.batch.amplify import amplify as run_batch
 
     start_command(ctx)
     if (variations is None) == (pairs is None):
@@ -147,15 +147,15 @@ class _executor:
     def __enter__(self):
         if self.cluster is None:
             return None
-        from cagekit.amplify import prepare_worker
-        from cagekit.cluster import connect
+        from cagekit.batch.amplify import prepare_worker
+        from cagekit.batch.cluster import connect
 
         self.client = connect(self.cluster, self.workers, setup=prepare_worker)
         return self.client.get_executor(pure=False)
 
     def __exit__(self, *exc):
         if self.client is not None:
-            from cagekit.cluster import close
+            from cagekit.batch.cluster import close
 
             close(self.client)
         return False

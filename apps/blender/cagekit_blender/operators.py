@@ -1,7 +1,7 @@
 """The add-on's operators: ``bpy.ops.cagekit.<name>()``, each with its options as properties.
 
 Every computation is cagekit's own (``cagekit.fit_cage``, ``cagekit.bind``,
-``cagekit.deform``, ``cagekit.transfer``, ``cagekit.amplify``); these operators
+``cagekit.deform``, ``cagekit.transfer``, ``cagekit.batch.amplify``); these operators
 only read the scene, call it (:mod:`.jobs`) and add the results. Results are new objects
 (copies of the source, so materials, UVs and polygons are kept, with moved vertices);
 inputs are never changed, except by ``bind`` and ``unbind``, which are undoable.
@@ -294,7 +294,7 @@ class CAGEKIT_OT_transfer_pose(jobs.Job, bpy.types.Operator):
 
 
 class CAGEKIT_OT_amplify(jobs.Job, bpy.types.Operator):
-    """Variations of a collection of meshes (cagekit.amplify): each source deformed onto
+    """Variations of a collection of meshes (cagekit.batch.amplify): each source deformed onto
     another's proportions, the implausible ones left out, into a new collection"""
 
     bl_idname = "cagekit.amplify"
@@ -322,7 +322,7 @@ class CAGEKIT_OT_amplify(jobs.Job, bpy.types.Operator):
 
     def compute(self, inputs, progress):
         from cagekit import io
-        from cagekit.amplify import amplify
+        from cagekit.batch.amplify import amplify
 
         coll, shapes = inputs
         by_file = {_file_name(name): name for name, _ in shapes}

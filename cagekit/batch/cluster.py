@@ -4,7 +4,7 @@ Dask distributed was chosen over Ray by measurement (docs/benchmarks.md, "Stock
 amplification"): it installs in a few megabytes of pure Python, a local cluster of two
 workers starts in about two seconds, and a user points it at an existing cluster with
 the scheduler's address. Its ``Client.get_executor()`` is a ``concurrent.futures``
-executor, so :func:`cagekit.amplify.amplify` runs the same loop on it as on a process
+executor, so :func:`cagekit.batch.amplify.amplify` runs the same loop on it as on a process
 pool. Imported only when a cluster is asked for; the ``cluster`` extra installs it.
 """
 
@@ -28,7 +28,7 @@ def connect(address: str, workers: int | None = None, setup=None):
         for is cut). Ignored for a running scheduler (its workers are what they are).
     setup : callable, optional
         Run once in the main thread of every worker, today's and those that join later
-        (a Dask worker plugin), for example :func:`cagekit.amplify.prepare_worker`.
+        (a Dask worker plugin), for example :func:`cagekit.batch.amplify.prepare_worker`.
 
     Returns
     -------
@@ -53,7 +53,7 @@ def connect(address: str, workers: int | None = None, setup=None):
     if address == "local":
         import dask
 
-        from cagekit.amplify import worker_count
+        from cagekit.batch.amplify import worker_count
 
         # Dask's nannies set MALLOC_TRIM_THRESHOLD_=65536 in their workers (and in this
         # process): glibc then hands freed memory back at once and faults it in again,

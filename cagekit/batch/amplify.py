@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cagekit.collection import SYNTHETIC_PREFIX, Shape, file_hash, find_shapes, load_shape_of
+from cagekit.batch.collection import SYNTHETIC_PREFIX, Shape, file_hash, find_shapes, load_shape_of
 from cagekit.errors import CagekitWarning, InputError
 from cagekit.files import atomic_output, one_line, read_text
 
@@ -111,7 +111,7 @@ def plan_pairs(shapes, *, variations=None, pairs=None, category_by=None,
     Parameters
     ----------
     shapes : list of Shape
-        From :func:`cagekit.collection.find_shapes`.
+        From :func:`cagekit.batch.collection.find_shapes`.
     variations : int, optional
         Draw this many distinct ordered pairs, uniformly, with ``seed``; a shape is never
         paired with itself.
@@ -134,7 +134,7 @@ def plan_pairs(shapes, *, variations=None, pairs=None, category_by=None,
 
     Examples
     --------
-    >>> from cagekit.collection import find_shapes
+    >>> from cagekit.batch.collection import find_shapes
     >>> shapes = find_shapes("synthetic:vases:3")
     >>> len(plan_pairs(shapes, pairs="all")), len(plan_pairs(shapes, variations=4))
     (6, 4)
@@ -481,7 +481,7 @@ def amplify(collection: str, out_dir: str, *, variations: int | None = None,
     ----------
     collection : str
         A folder of meshes (recursive) or ``synthetic:<family>:<count>``
-        (:func:`cagekit.collection.find_shapes`).
+        (:func:`cagekit.batch.collection.find_shapes`).
     out_dir : str
         Output folder, outside the collection: ``variations/<source>__<target>.obj``,
         ``rejected/`` (the rejected ones, unless ``drop_rejected``), ``cages/<source>.obj``

@@ -1,6 +1,6 @@
 """A collection of shapes: a folder of meshes, or a procedural family, by name.
 
-``cagekit amplify`` and :func:`cagekit.amplify.amplify` take a collection, name its shapes
+``cagekit amplify`` and :func:`cagekit.batch.amplify.amplify` take a collection, name its shapes
 uniquely (for output files and pair lists), group them by category and fingerprint their
 content (so that a resumed batch redoes only what changed). Loading happens where the
 work runs (a worker process or a cluster node), from a :class:`Shape`'s ``location``.
