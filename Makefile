@@ -58,8 +58,10 @@ package-check: $(STAMP)
 	$(PYTHON) -m venv $(PACKAGE_CHECK)/venv
 	$(PACKAGE_CHECK)/venv/bin/pip install -q $(OLDER)
 	$(PACKAGE_CHECK)/venv/bin/pip install -q $(PACKAGE_CHECK)/dist/cagekit-*.tar.gz
+	$(PACKAGE_CHECK)/venv/bin/pip check
 	cd $(PACKAGE_CHECK) && venv/bin/python $(CURDIR)/tests/package_smoke.py $(CURDIR)/data/example $(OLDER)
 	$(PACKAGE_CHECK)/venv/bin/pip install -q --force-reinstall --no-deps $(PACKAGE_CHECK)/dist/cagekit-*.whl
+	$(PACKAGE_CHECK)/venv/bin/pip check
 	cd $(PACKAGE_CHECK) && venv/bin/python $(CURDIR)/tests/package_smoke.py $(CURDIR)/data/example $(OLDER)
 
 test-slow: $(STAMP)
@@ -79,12 +81,12 @@ bench-assets: $(STAMP) assets
 	$(BIN)/python benchmarks/bench_assets.py --json out/bench_assets.json --sheet out/assets_sheet.png
 
 bench: $(STAMP)
-	$(BIN)/pip install -q -e '.[dev,bench]'
+	$(BIN)/pip install -q -e '.[dev,bench]' -c constraints.txt
 	$(BIN)/python benchmarks/bench_mvc.py
 
 # needs Debian's libcgal-demo for its meshes (installed here when missing and run as root)
 bench-fit-cage: $(STAMP)
-	$(BIN)/pip install -q -e '.[dev,bench]'
+	$(BIN)/pip install -q -e '.[dev,bench]' -c constraints.txt
 	test -f /usr/share/doc/libcgal-dev/data.tar.gz || apt-get install -y -q libcgal-demo
 	$(BIN)/python benchmarks/bench_fit_cage.py
 
@@ -105,7 +107,7 @@ bench-transfer: $(STAMP)
 
 # 40 variations of sweethome3d-furniture's chairs: 1 worker, 2 workers, a local Dask cluster
 bench-amplify: $(STAMP)
-	$(BIN)/pip install -q -e '.[dev,bench,cluster]'
+	$(BIN)/pip install -q -e '.[dev,bench,cluster]' -c constraints.txt
 	$(BIN)/python benchmarks/bench_amplify.py --json out/bench_amplify.json --sheet docs/images/amplify_sheet.png
 
 # Blender as a Python module (bpy 5.0.1, about 370 MB) in its own environment: Blender 5.0's

@@ -17,15 +17,13 @@ has returned), where what the handler raises is kept the same way.
 
 from __future__ import annotations
 
-import contextlib
-import signal
-import threading
 from dataclasses import dataclass
 
 import nlopt
 import numpy as np
 
 from cagekit.errors import exception_chain
+from cagekit.interrupts import sigint_deferred
 
 __all__ = ["Minimum", "minimise"]
 
@@ -86,7 +84,7 @@ def minimise(objective, x0, max_evaluations: int, tolerance: float,
     (True, (2, 3))
     """
     x0 = np.asarray(x0, dtype=np.float64)
-    with _sigint_deferred() as pending:
+    with sigint_deferred() as pending:
         search = _Search(objective, x0, max_evaluations, progress, pending)
         budget = max_evaluations
         for _ in range(2):
@@ -158,37 +156,3 @@ def _interrupt_in_chain(exc: BaseException) -> BaseException | None:
     """The first exception in ``exc``'s cause/context chain that is not an ``Exception``
     (``KeyboardInterrupt``, the command line's ``Interrupted``), or None."""
     return next((e for e in exception_chain(exc) if not isinstance(e, Exception)), None)
-
-
-@contextlib.contextmanager
-def _sigint_deferred():
-    """While the block runs, a SIGINT only takes note; yields ``pending()``, which calls
-    the SIGINT handler that was installed (it may raise) if one arrived since the last call.
-
-    Only in the main thread (where Python runs signal handlers) and only when the installed
-    handler is a Python function (``SIG_DFL`` and ``SIG_IGN`` raise nothing). The handler
-    is put back when the block ends, unless the handler replaced itself meanwhile (the
-    command line's ignores a second Ctrl-C while the first unwinds).
-    """
-    previous = signal.getsignal(signal.SIGINT)
-    if not callable(previous) or threading.current_thread() is not threading.main_thread():
-        yield lambda: None
-        return
-    arrived = []
-
-    def pending():
-        if arrived:
-            frame = arrived.pop()
-            arrived.clear()
-            previous(signal.SIGINT, frame)
-
-    def note(signum, frame):
-        arrived.append(frame)
-
-    signal.signal(signal.SIGINT, note)
-    try:
-        yield pending
-    finally:
-        if signal.getsignal(signal.SIGINT) is note:
-            signal.signal(signal.SIGINT, previous)
-        pending()  # one that came after the last call is not lost

@@ -4,7 +4,8 @@ Run from outside the repository with the environment's own Python: it checks tha
 ``cagekit`` comes from that environment's site-packages, prints the versions of the
 libraries it found, and runs each main path once on the bundled example chairs: cage
 fitting, both coordinates (partition of unity and reproduction), a short deformation and
-its figures, mesh input and output, a picture, and the ``cagekit`` command. Versions given
+its figures, mesh input and output, a picture, and the ``cagekit`` command; the transfer
+and the batch packages import. Versions given
 as ``NAME==VERSION`` must be the ones installed (the installation kept them).
 
 Usage: python package_smoke.py EXAMPLE_FOLDER [NAME==VERSION ...]
@@ -19,6 +20,8 @@ import tempfile
 import numpy as np
 
 import cagekit
+import cagekit.batch.amplify
+import cagekit.transfer
 from cagekit import io
 from cagekit.render import render_meshes
 
@@ -61,6 +64,7 @@ def main(example: str, expected: list[str]) -> None:
                                os.path.join(example, "chair_target.obj"), "-o",
                                os.path.join(folder, "cli.obj")], capture_output=True, text=True)
         assert done.returncode == 0, done.stderr
+    assert callable(cagekit.transfer.fit_character) and callable(cagekit.batch.amplify.amplify)
     print(f"smoke test passed: cage {len(cage_f)} faces, deformed CD x1e2 "
           f"{100 * figures['cd']:.2f}")
 

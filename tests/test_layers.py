@@ -1,5 +1,7 @@
-"""The layers point one way: core < cagekit_learn < command line < apps (DESIGN.md): the core
-and its command line never import the applications.
+"""The layers point one way (DESIGN.md): core < cagekit_learn < apps, the command line using
+core and learn; the core and its command line never import the applications (which may
+run the command line: ``python -m apps.deformation_transfer``). The Blender add-on ships
+without ``apps`` (its extension holds the wheel of cagekit), so it imports none of it.
 
 Read from the source (ast), so a lazy import inside a function counts as well. No module
 imports from a layer above its own, nor another module's private (``_name``) names. The
@@ -82,3 +84,11 @@ def test_the_check_sees_a_bad_import(tmp_path, source, expected):
     probe = tmp_path / "probe.py"
     probe.write_text(source)
     assert any(expected in v for v in violations([("cagekit.probe", probe)]))
+
+
+def test_the_blender_add_on_imports_nothing_from_apps():
+    addon = ROOT / "apps" / "blender" / "cagekit_blender"
+    found = [f"{path.name}:{line}: {module}" for path in sorted(addon.glob("*.py"))
+             for line, module, _ in imports(f"cagekit_blender.{path.stem}", path)
+             if module == "apps" or module.startswith("apps.")]
+    assert found == []

@@ -37,6 +37,7 @@ import numpy as np
 from cagekit.batch.collection import SYNTHETIC_PREFIX, Shape, file_hash, find_shapes, load_shape_of
 from cagekit.errors import CagekitWarning, InputError
 from cagekit.files import atomic_output, one_line, read_text
+from cagekit.interrupts import sigint_deferred
 
 __all__ = ["COLUMNS", "COORDS", "MAX_CD", "MAX_NONAFFINITY", "METHODS", "SHEET_COLUMNS", "Item",
            "amplify", "contact_sheet", "deform_item", "plan_pairs", "prepare_worker",
@@ -732,63 +733,9 @@ def _sigint_held():
 
 
 #: how often (seconds) a batch on a pool or an executor looks for a Ctrl-C that came
+#: (:func:`cagekit.interrupts.sigint_deferred`: one raised inside ``concurrent.futures``
+#: could leave a future's lock held and the interpreter's exit waiting for ever)
 _INTERRUPT_POLL = 0.1
-
-
-class _DeferredInterrupt:
-    """A SIGINT that came while :func:`_interrupts_deferred` held it back."""
-
-    def __init__(self, handler=None):
-        self.handler = handler  # the SIGINT handler replaced (None: nothing deferred)
-        self.came = None  # (signum, frame) of the SIGINT that came, until raised
-
-    def record(self, signum, frame) -> None:
-        """The deferring handler: the first SIGINT is kept, later ones are dropped."""
-        if self.came is None:
-            self.came = (signum, frame)
-
-    def check(self) -> None:
-        """Raise the SIGINT that came, if one did, by the handler it was kept from
-        (``KeyboardInterrupt``, or the command line's ``Interrupted``)."""
-        if self.came is not None and self.handler is not None:
-            came, self.came = self.came, None
-            self.handler(*came)
-
-
-@contextlib.contextmanager
-def _interrupts_deferred():
-    """Keep a Ctrl-C (SIGINT) from being raised inside the block, where it would land in
-    ``concurrent.futures``' own code; the block raises it, at a point of its choosing, by
-    calling the yielded object's ``check()``; one that came after the last ``check()`` is
-    raised as the block ends (unless an exception is already on its way out).
-
-    Why: Python raises a Ctrl-C at any bytecode of the main thread. Landing in
-    ``concurrent.futures.wait`` while that held some futures' locks, it left them held;
-    the pool's manager thread then blocked on one for ever, and so did the interpreter's
-    exit, which joins that thread (a batch that said ``interrupted`` and never ended, seen
-    once in CI; reproduced by slowing ``wait``'s lock-taking). Outside the main thread, or
-    where SIGINT is ignored or left to the system, nothing is deferred.
-
-    Yields
-    ------
-    _DeferredInterrupt
-    """
-    previous = signal.getsignal(signal.SIGINT) \
-        if threading.current_thread() is threading.main_thread() else None
-    if not callable(previous):
-        yield _DeferredInterrupt()
-        return
-    interrupt = _DeferredInterrupt(previous)
-    signal.signal(signal.SIGINT, interrupt.record)
-    try:
-        yield interrupt
-    except BaseException:
-        interrupt.came = None  # the exception on its way out wins
-        raise
-    finally:
-        if signal.getsignal(signal.SIGINT) == interrupt.record:  # not changed in the block
-            signal.signal(signal.SIGINT, previous)
-    interrupt.check()
 
 
 def _stop_pool(pool: cf.ProcessPoolExecutor) -> None:
@@ -921,8 +868,8 @@ class _Runner:
         if not self.todo:
             return
         if executor is not None:
-            with _interrupts_deferred() as interrupt:
-                self._loop(executor.submit, 2 * (workers or 2), interrupt.check)
+            with sigint_deferred() as interrupted:
+                self._loop(executor.submit, 2 * (workers or 2), interrupted)
             return
         workers = worker_count(workers, len(self.todo))
         if workers == 1:
@@ -933,18 +880,18 @@ class _Runner:
             pool = process_pool(workers)
         except OSError as exc:
             raise _cannot_start(workers, exc) from None
-        with _interrupts_deferred() as interrupt:
-            try:
-                self._loop(_starting(pool, workers), 2 * workers, interrupt.check)
-                pool.shutdown(wait=True)
-            except BaseException:  # Ctrl-C, an error: no worker outlives the batch
-                _stop_pool(pool)
-                raise
+        try:
+            with sigint_deferred() as interrupted:
+                self._loop(_starting(pool, workers), 2 * workers, interrupted)
+            pool.shutdown(wait=True)
+        except BaseException:  # Ctrl-C, an error: no worker outlives the batch
+            _stop_pool(pool)
+            raise
 
     def _loop(self, submit, window, interrupted=lambda: None):
         """Submit items, ``window`` at most in flight, and record each as it finishes;
-        ``interrupted()`` (which raises a Ctrl-C that came) is called every
-        :data:`_INTERRUPT_POLL` seconds and after each finished item."""
+        ``interrupted()`` (which raises a Ctrl-C that came) is called before each round of
+        submissions, at least every :data:`_INTERRUPT_POLL` seconds."""
         pending, fitting, running = list(self.todo), set(), {}
         try:
             while pending or running:
