@@ -33,6 +33,8 @@ def main(example: str, expected: list[str]) -> None:
     if "site-packages" not in cagekit.__file__:
         sys.exit(f"cagekit was imported from {cagekit.__file__}, not from the environment")
     print("cagekit", cagekit.__version__, "from", os.path.dirname(cagekit.__file__))
+    if not os.path.exists(os.path.join(os.path.dirname(cagekit.__file__), "py.typed")):
+        sys.exit("cagekit was installed without its py.typed")
     print(", ".join(f"{name} {importlib.metadata.version(name)}" for name in LIBRARIES))
     for pin in expected:
         name, version = pin.split("==")

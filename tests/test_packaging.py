@@ -1,6 +1,7 @@
-"""The wheel (DESIGN.md): the packages ``cagekit`` and ``cagekit_learn`` and nothing else at
-the top (no ``apps``, a folder name any other project may use), built from a copy of the
-sources with this environment's setuptools (no network)."""
+"""The wheel (DESIGN.md): the packages ``cagekit`` and ``cagekit_learn``, each with its
+``py.typed`` (PEP 561), and nothing else at the top (no ``apps``, a folder name any other
+project may use), built from a copy of the sources with this environment's setuptools (no
+network)."""
 
 import shutil
 import subprocess
@@ -31,3 +32,4 @@ def test_the_wheel_holds_cagekit_and_cagekit_learn_only(tmp_path):
     top = {name.split("/")[0] for name in names if not name.split("/")[0].endswith(".dist-info")}
     assert top == {"cagekit", "cagekit_learn"}
     assert "cagekit/transfer/character.py" in names  # the transfer is the core's
+    assert {"cagekit/py.typed", "cagekit_learn/py.typed"} <= set(names)  # PEP 561
