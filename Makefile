@@ -52,17 +52,16 @@ test-as-%: $(STAMP)
 # trimesh (which the installation must keep) and passes tests/package_smoke.py there.
 PACKAGE_CHECK := out/package-check
 OLDER := numpy==2.3.5 scipy==1.16.3 matplotlib==3.10.7 trimesh==4.12.2
+SMOKE = cd $(PACKAGE_CHECK) && venv/bin/pip check && venv/bin/python $(CURDIR)/tests/package_smoke.py $(CURDIR)/data/example $(OLDER)
 package-check: $(STAMP)
 	rm -rf $(PACKAGE_CHECK)
 	$(BIN)/python -m build -q --outdir $(PACKAGE_CHECK)/dist .
 	$(PYTHON) -m venv $(PACKAGE_CHECK)/venv
 	$(PACKAGE_CHECK)/venv/bin/pip install -q $(OLDER)
 	$(PACKAGE_CHECK)/venv/bin/pip install -q $(PACKAGE_CHECK)/dist/cagekit-*.tar.gz
-	$(PACKAGE_CHECK)/venv/bin/pip check
-	cd $(PACKAGE_CHECK) && venv/bin/python $(CURDIR)/tests/package_smoke.py $(CURDIR)/data/example $(OLDER)
+	$(SMOKE)
 	$(PACKAGE_CHECK)/venv/bin/pip install -q --force-reinstall --no-deps $(PACKAGE_CHECK)/dist/cagekit-*.whl
-	$(PACKAGE_CHECK)/venv/bin/pip check
-	cd $(PACKAGE_CHECK) && venv/bin/python $(CURDIR)/tests/package_smoke.py $(CURDIR)/data/example $(OLDER)
+	$(SMOKE)
 
 test-slow: $(STAMP)
 	$(BIN)/python -m pytest -q -m slow tests

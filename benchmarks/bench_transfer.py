@@ -184,6 +184,8 @@ def template_cages(template, cage, examples, model, seed) -> list[dict]:
     the seconds each took: once for every character that uses the same examples."""
     (Vt, Ft), (cage_v, cage_f) = template, cage
     fitter = dt.classical_fitter(Vt, cage_v, cage_f)
+    if model is not None:
+        from cagekit_learn.transfer import template_cage_learned
     out = []
     for Vp, Fp in examples:
         t0 = time.perf_counter()
@@ -191,8 +193,6 @@ def template_cages(template, cage, examples, model, seed) -> list[dict]:
                                                          (Vp, Fp), seed=seed, fitter=fitter)}
         entry["classical_seconds"] = time.perf_counter() - t0
         if model is not None:
-            from cagekit_learn.transfer import template_cage_learned
-
             t0 = time.perf_counter()
             entry["learned"] = template_cage_learned(model, Vt, cage_v, (Vp, Fp))
             entry["learned_seconds"] = time.perf_counter() - t0

@@ -868,8 +868,7 @@ class _Runner:
         if not self.todo:
             return
         if executor is not None:
-            with sigint_deferred() as interrupted:
-                self._loop(executor.submit, 2 * (workers or 2), interrupted)
+            self._loop(executor.submit, 2 * (workers or 2))
             return
         workers = worker_count(workers, len(self.todo))
         if workers == 1:
@@ -881,17 +880,22 @@ class _Runner:
         except OSError as exc:
             raise _cannot_start(workers, exc) from None
         try:
-            with sigint_deferred() as interrupted:
-                self._loop(_starting(pool, workers), 2 * workers, interrupted)
+            self._loop(_starting(pool, workers), 2 * workers)
             pool.shutdown(wait=True)
         except BaseException:  # Ctrl-C, an error: no worker outlives the batch
             _stop_pool(pool)
             raise
 
-    def _loop(self, submit, window, interrupted=lambda: None):
-        """Submit items, ``window`` at most in flight, and record each as it finishes;
-        ``interrupted()`` (which raises a Ctrl-C that came) is called before each round of
-        submissions, at least every :data:`_INTERRUPT_POLL` seconds."""
+    def _loop(self, submit, window):
+        """Submit items, ``window`` at most in flight, and record each as it finishes. A
+        Ctrl-C is held back inside (:func:`cagekit.interrupts.sigint_deferred`) and raised
+        before each round of submissions, at least every :data:`_INTERRUPT_POLL` seconds."""
+        with sigint_deferred() as interrupted:
+            self._rounds(submit, window, interrupted)
+
+    def _rounds(self, submit, window, interrupted):
+        """The rounds of :meth:`_loop`; the futures still running when it ends are
+        cancelled."""
         pending, fitting, running = list(self.todo), set(), {}
         try:
             while pending or running:
