@@ -5,7 +5,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: package-check blender-venv test-blender blender-extension blender-render bench-blender demo test test-emulated test-slow lint assets bench bench-assets bench-fit-cage bench-deform bench-learn bench-transfer bench-amplify venv clean
+.PHONY: package-check blender-venv test-blender blender-extension blender-render bench-blender demo test test-emulated test-slow lint architecture assets bench bench-assets bench-fit-cage bench-deform bench-learn bench-transfer bench-amplify venv clean
 
 $(STAMP): setup.cfg pyproject.toml constraints.txt constraints-common.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -69,6 +69,10 @@ test-slow: $(STAMP)
 lint: $(STAMP)
 	$(BIN)/ruff check cagekit cagekit_learn apps tests benchmarks data
 
+# docs/architecture.md's module map, generated from the code (tests/test_layers.py checks it)
+architecture: $(STAMP)
+	$(BIN)/python tests/architecture.py
+
 # Debian's sweethome3d-furniture (820 real models; installed as root when missing)
 FURNITURE := /usr/share/sweethome3d/furniture/KatorLegaz.sh3f
 assets:
@@ -123,7 +127,7 @@ blender-venv: $(BLENDER_STAMP)
 
 # the add-on's tests with the real bpy (marked blender; the default run skips them)
 test-blender: $(BLENDER_STAMP)
-	$(BLENDER_BIN)/python -m pytest -q -p no:cacheprovider -m blender tests/test_blender.py
+	$(BLENDER_BIN)/python -m pytest -q -p no:cacheprovider -m blender tests/apps/test_blender.py
 
 # the installable Blender extension (out/blender/cagekit-0.1.0-linux_x64.zip): the add-on with
 # the wheels of cagekit and its dependencies for Blender 5.0's Python (downloaded from PyPI),

@@ -44,8 +44,8 @@ from cagekit import io
 from cagekit.cli.common import Command, FiniteFloatRange, debug_option, emit_json, json_option
 from cagekit.datasets import characters, humanoid
 from cagekit.errors import InputError
-from cagekit.files import atomic_output, output_folder
-from cagekit.landmarks import save_landmarks, save_picked
+from cagekit.io.files import atomic_output, output_folder
+from cagekit.io.landmarks import save_landmarks, save_picked
 
 __all__ = ["REVERSE_POSES", "TEST_POSE_SEED", "landmark_names", "landmarks_of", "posed_cage",
            "template_cage", "write"]
@@ -94,7 +94,7 @@ def template_cage(rig, *, kind: str = "artist", faces: int = 196, seed: int = 0)
 
         return humanoid_cage(rig)
     if kind == "fit":
-        from cagekit.fitting import fit_cage
+        from cagekit.cage.fitting import fit_cage
 
         return fit_cage(rig.vertices, rig.faces, faces=faces, seed=seed)
     raise InputError(f"cage must be 'artist' or 'fit', got {kind!r}")

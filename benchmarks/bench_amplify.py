@@ -126,8 +126,8 @@ def cage_reuse(rows) -> dict:
 
 def _imports(seconds):
     """Import what an item runs (numba kernels load on first use in every mode)."""
+    import cagekit.cage.fitting  # noqa: F401
     import cagekit.deformation  # noqa: F401
-    import cagekit.fitting  # noqa: F401
     import cagekit.metrics  # noqa: F401
 
     time.sleep(seconds)

@@ -40,9 +40,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from apps import humanoid_data  # noqa: E402
 from cagekit import io  # noqa: E402
-from cagekit.alignment import box_alignment  # noqa: E402
 from cagekit.errors import CageFitError  # noqa: E402
-from cagekit.landmarks import load_landmarks, match_landmarks  # noqa: E402
+from cagekit.geometry.alignment import box_alignment  # noqa: E402
+from cagekit.io.landmarks import load_landmarks, match_landmarks  # noqa: E402
 from cagekit.transfer import character_cage as cc  # noqa: E402
 
 VARIANTS = ("paper", "landmarks", "full")

@@ -75,7 +75,7 @@ KIND_WORDS = (("armchair", ("armchair",)), ("sofa", ("sofa", "couch")),
 NOT_FURNITURE = ("fan", "tennis", "pool", "football", "bedside", "wheel", "workbench",
                  "abdominal", "bat", "ottoman")
 #: cage-src is method cage with reference="source" (the paper's reference; see
-#: cagekit/deformation.py): same cage fit, every stretch charged
+#: cagekit/deformation/): same cage fit, every stretch charged
 
 
 def cgal_meshes(cache):
@@ -333,7 +333,7 @@ def partial_targets() -> list[dict]:
     x), each result measured against the full target (CD x1e2 in the full target's frame):
     the cage onto the full target (the reference), onto the scan as if full, onto the scan
     with ``target_kind="partial"``, and box scaling onto the scan."""
-    from cagekit.frame import Frame
+    from cagekit.geometry.frame import Frame
 
     rows = []
     print("\npartial targets: CD x1e2 against the full target")

@@ -8,7 +8,7 @@ humanoids and mechanical parts.
 For each mesh and each face budget (200 and 1,000) the script prints, for cagekit (method
 ``wrap``) and for ``gpytoolbox.copyleft.lazy_cage`` (``pip install -e .[bench]``; GPL, run
 with its defaults, ``force_output=True``) on the same mesh in the same run: success, every
-guarantee of :func:`cagekit.fitting.cage_report` (checked the same way for both), the volume
+guarantee of :func:`cagekit.cage.fitting.cage_report` (checked the same way for both), the volume
 ratio, the largest cage-to-shape distance over the diagonal, and seconds. Then the medians
 and the share of meshes with every guarantee met.
 
@@ -99,7 +99,7 @@ def find_mesh(folder: str, name: str) -> str:
 
 
 def run_cagekit(v, f, faces):
-    from cagekit.fitting import CageFitError, fit_cage
+    from cagekit.cage.fitting import CageFitError, fit_cage
 
     t = time.perf_counter()
     try:
@@ -125,8 +125,8 @@ def run_lazy_cage(v, f, faces):
 
 
 def evaluate(v, f, result, seconds, error, faces):
+    from cagekit.cage.fitting import cage_report
     from cagekit.errors import InputError
-    from cagekit.fitting import cage_report
 
     row = {"seconds": seconds, "error": error}
     try:

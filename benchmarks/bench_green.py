@@ -47,9 +47,9 @@ def real_case():
     vertices) and its 200-face fitted cage, or None without the package."""
     from bench_deform import MAX_REAL_VERTICES, furniture_kind
 
+    from cagekit.cage.fitting import fit_cage
     from cagekit.datasets.sweethome3d import FURNITURE_CATALOGS, models
     from cagekit.errors import InputError
-    from cagekit.fitting import fit_cage
     from cagekit.io import load_mesh
 
     try:

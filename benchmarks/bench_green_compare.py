@@ -106,7 +106,7 @@ def limb(resolution: int = 48):
     """A bumpy cylinder along x (length 2, radius 0.2) and a tube cage around it."""
     import trimesh
 
-    from cagekit.shapes import box_cage
+    from cagekit.cage.shapes import box_cage
 
     mesh = trimesh.creation.cylinder(radius=0.2, height=2.0, sections=resolution)
     mesh = mesh.subdivide_to_size(0.04)
@@ -170,7 +170,7 @@ def transfers(data: Path, poses: int, picture=None, shown="arms_down"):
     from apps import humanoid_data
     from cagekit import io
     from cagekit.coords import bind
-    from cagekit.landmarks import load_landmarks
+    from cagekit.io.landmarks import load_landmarks
     from cagekit.transfer import character as dt
     from cagekit.transfer.surface_binding import bind_surface
 

@@ -55,8 +55,8 @@ from cagekit import io  # noqa: E402
 from cagekit.cage import unique_edges, vertex_components  # noqa: E402
 from cagekit.datasets import characters, humanoid  # noqa: E402
 from cagekit.errors import CageFitError  # noqa: E402
-from cagekit.frame import normalize  # noqa: E402
-from cagekit.landmarks import load_landmarks  # noqa: E402
+from cagekit.geometry.frame import normalize  # noqa: E402
+from cagekit.io.landmarks import load_landmarks  # noqa: E402
 from cagekit.metrics import dcotlap  # noqa: E402
 from cagekit.transfer import character as dt  # noqa: E402
 

@@ -12,7 +12,7 @@ bind`` work as usual.
 Examples
 --------
 >>> import numpy as np, cagekit
->>> cage_v, cage_f = cagekit.shapes.box_cage()
+>>> cage_v, cage_f = cagekit.cage.shapes.box_cage()
 >>> b = cagekit.bind(np.array([[0.2, 0.0, -0.1]]), cage_v, cage_f)
 >>> (b.deform(cage_v * [2.0, 1.0, 1.0]).round(12) + 0.0).tolist()
 [[0.4, 0.0, -0.1]]
@@ -29,24 +29,23 @@ _EXPORTS = {
     "green_coordinates": "cagekit.coords",
     "cage_encloses": "cagekit.cage", "check_cage": "cagekit.cage",
     "winding_numbers": "cagekit.cage",
-    "cotangent_laplacian": "cagekit.geometry", "normalize": "cagekit.frame",
-    "denormalize": "cagekit.frame", "Frame": "cagekit.frame",
-    "sample_surface": "cagekit.sampling", "surface_samples": "cagekit.sampling",
+    "cotangent_laplacian": "cagekit.geometry", "normalize": "cagekit.geometry.frame",
+    "denormalize": "cagekit.geometry.frame", "Frame": "cagekit.geometry.frame",
+    "sample_surface": "cagekit.geometry.sampling", "surface_samples": "cagekit.geometry.sampling",
     "pca_normals": "cagekit.geometry", "point_to_plane": "cagekit.geometry",
     "chamfer": "cagekit.metrics", "chamfer_distance": "cagekit.metrics",
     "dcotlap": "cagekit.metrics", "evaluate": "cagekit.metrics",
     "deform": "cagekit.deformation", "DeformResult": "cagekit.deformation",
-    "fit_cage": "cagekit.fitting", "cage_report": "cagekit.fitting",
-    "template_cage": "cagekit.fitting", "CageFitError": "cagekit.fitting",
+    "fit_cage": "cagekit.cage.fitting", "cage_report": "cagekit.cage.fitting",
+    "template_cage": "cagekit.cage.fitting", "CageFitError": "cagekit.cage.fitting",
     "InputError": "cagekit.errors", "MeshFileError": "cagekit.errors",
     "LandmarkFileError": "cagekit.errors", "CageError": "cagekit.errors",
     "CagekitWarning": "cagekit.errors", "MeshFileWarning": "cagekit.errors",
     "OutsideCageWarning": "cagekit.errors",
 }
 #: submodules reachable as attributes (``cagekit.io.load_mesh``) without importing them first
-_SUBMODULES = ("alignment", "batch", "cage", "coords", "datasets", "deformation", "errors", "files",
-               "fitting", "frame", "geometry", "io", "landmarks", "losses", "metrics",
-               "optimize", "progress", "render", "sampling", "shapes", "transfer")
+_SUBMODULES = ("batch", "cage", "coords", "datasets", "deformation", "errors", "geometry",
+               "io", "metrics", "progress", "render", "transfer")
 
 __all__ = [*_EXPORTS, *_SUBMODULES, "__version__"]
 

@@ -2,7 +2,7 @@
 
 Python raises a SIGINT's exception at whichever bytecode the main thread runs next. In code
 that must not be cut short there, it breaks things: raised inside a callback of nlopt's C
-code it is lost or turned into an error (:mod:`cagekit.optimize`); raised inside
+code it is lost or turned into an error (:mod:`cagekit.deformation.solver`); raised inside
 ``concurrent.futures.wait`` while that held its futures' locks, it left a lock held, and
 the interpreter's exit then waited for ever on the pool's manager thread
 (:mod:`cagekit.batch.amplify`). :func:`sigint_deferred` lets the code say where.

@@ -31,7 +31,6 @@ from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
 from cagekit.errors import InputError
-from cagekit.frame import Frame
 from cagekit.geometry import (
     as_faces,
     as_shape,
@@ -40,7 +39,8 @@ from cagekit.geometry import (
     remove_duplicate_faces,
     surface_laplacian,
 )
-from cagekit.sampling import surface_samples
+from cagekit.geometry.frame import Frame
+from cagekit.geometry.sampling import surface_samples
 
 __all__ = ["chamfer", "chamfer_distance", "conformal_distortion", "dcotlap", "evaluate",
            "part_nonaffinity", "planarity", "symmetry_error", "MIN_PART_VERTICES", "PLANAR_DEGREES",
@@ -215,7 +215,7 @@ def evaluate(source, target, deformed, n_samples: int = 5000, seed: int = 0,
         Sampling seed, non-negative; the two surfaces get independent streams derived
         from it (see :func:`chamfer`).
     frames : (source Frame, target Frame), optional
-        The shapes' unit frames (:meth:`cagekit.frame.Frame.of`) when the caller has them
+        The shapes' unit frames (:meth:`cagekit.geometry.frame.Frame.of`) when the caller has them
         already (``DeformResult.source_frame``, ``target_frame``); computed otherwise.
 
     Returns

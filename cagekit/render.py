@@ -22,8 +22,8 @@ from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the "3d" proje
 from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
 from cagekit.cage import unique_edges
-from cagekit.files import atomic_output
 from cagekit.geometry import as_shape
+from cagekit.io.files import atomic_output
 
 __all__ = ["MAX_FACES", "MAX_POINTS", "render_meshes", "render_grid"]
 
@@ -231,7 +231,7 @@ def render_meshes(
         with no faces (``F`` empty or None) is a point cloud and is drawn as dots.
     path : str or os.PathLike
         Output PNG file. Written to a temporary file in the same folder, then renamed
-        (:func:`cagekit.files.atomic_output`); its folder must exist.
+        (:func:`cagekit.io.files.atomic_output`); its folder must exist.
     cages : sequence of (V, F) or None, optional
         Same length as ``meshes``; the cage of each shape (or None), drawn as a wireframe
         of its unique edges over the shape.
@@ -262,7 +262,7 @@ def render_meshes(
         If the arrays have the wrong shape, or ``cages``/``titles`` have the wrong length.
     cagekit.errors.InputError
         If ``path`` is a folder or its folder does not exist (raised by
-        :func:`cagekit.files.atomic_output`; also a ``ValueError``).
+        :func:`cagekit.io.files.atomic_output`; also a ``ValueError``).
 
     Examples
     --------

@@ -2,7 +2,7 @@
 
 One concept a module: :mod:`~cagekit_learn.coords` (differentiable, batched mean value
 coordinates, ``bind``/``deform`` as in the core, matching it in float64),
-:mod:`~cagekit_learn.losses` (the same terms as :mod:`cagekit.losses`),
+:mod:`~cagekit_learn.losses` (the same terms as :mod:`cagekit.deformation.terms`),
 :mod:`~cagekit_learn.networks` (the PointNet encoder, N_c and N_d),
 :mod:`~cagekit_learn.data` (folders of meshes, pairs, augmentation),
 :mod:`~cagekit_learn.train` (``cagekit train``: Adam, checkpoints, exact resume,
@@ -14,7 +14,7 @@ this one, nor torch. See docs/architecture.md.
 Examples
 --------
 >>> import torch, cagekit_learn
->>> from cagekit.shapes import box_cage
+>>> from cagekit.cage.shapes import box_cage
 >>> v, f = box_cage()
 >>> cage = torch.tensor(v, requires_grad=True)
 >>> b = cagekit_learn.bind(torch.zeros(1, 3, dtype=torch.float64), cage, f)

@@ -1,4 +1,4 @@
-"""Torch twin of :func:`cagekit.alignment.box_scale`, batched, for the networks."""
+"""Torch twin of :func:`cagekit.geometry.alignment.box_scale`, batched, for the networks."""
 
 from __future__ import annotations
 

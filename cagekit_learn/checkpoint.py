@@ -7,7 +7,7 @@ A checkpoint is one ``torch.save`` file holding only tensors and plain Python va
 
 It is read with ``torch.load(..., weights_only=True)``, PyTorch's restricted unpickler,
 which rebuilds tensors and containers and refuses anything else, so a malicious file
-cannot execute code. It is written with :func:`cagekit.files.atomic_output` (a temporary file
+cannot execute code. It is written with :func:`cagekit.io.files.atomic_output` (a temporary file
 in the same folder, fsynced, renamed over the old one), so a run killed while saving leaves
 the previous checkpoint whole, and the next save removes what the killed one left.
 """
@@ -42,7 +42,7 @@ def save_checkpoint(path, payload: dict) -> None:
     payload : dict
         Tensors and plain Python values only.
     """
-    from cagekit.files import atomic_output
+    from cagekit.io.files import atomic_output
 
     with atomic_output(path) as tmp, open(tmp, "wb") as handle:
         torch.save({"format": FORMAT, **payload}, handle)

@@ -9,8 +9,8 @@ landmarks ``q``, the character's cage ``C'`` minimises
 with ``w_L = 0.05`` (the paper's) and one ``L``, the cotangent Laplacian of ``C_s``
 (:func:`cagekit.geometry.cotangent_laplacian`), applied to both cages. Ours where the paper
 is silent: the character is first mapped onto the template by a similarity (``"similarity"``,
-Umeyama on the landmarks; or a given :class:`~cagekit.alignment.Similarity`, such as the
-bounding-box one of :func:`cagekit.alignment.box_alignment`), the fit starts from ``C_s``
+Umeyama on the landmarks; or a given :class:`~cagekit.geometry.alignment.Similarity`, such as the
+bounding-box one of :func:`cagekit.geometry.alignment.box_alignment`), the fit starts from ``C_s``
 there and is mapped back, so a similar copy of the template gets that similarity of ``C_s``
 at zero residual. nlopt's
 L-BFGS uses the analytic gradient of :func:`cagekit_learn.coords.mean_value_coordinates`
@@ -28,12 +28,12 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from cagekit.alignment import Similarity, similarity_alignment
 from cagekit.cage import check_cage
 from cagekit.coords import bind as bind_numpy
+from cagekit.deformation.solver import minimise
 from cagekit.errors import InputError
 from cagekit.geometry import as_vertices, cotangent_laplacian
-from cagekit.optimize import minimise
+from cagekit.geometry.alignment import Similarity, similarity_alignment
 from cagekit_learn.coords import mean_value_coordinates
 from cagekit_learn.threads import one_thread
 
@@ -89,7 +89,8 @@ class ConsistencyFit:
 
 
 class _ConsistencyEnergy:
-    """``L_consistency`` and its gradient for nlopt (for :func:`cagekit.optimize.minimise`)."""
+    """``L_consistency`` and its gradient for nlopt (for
+    :func:`cagekit.deformation.solver.minimise`)."""
 
     def __init__(self, phi_p, Qa, cage_f, lap, lap_norms, weight):
         self.phi_p = torch.as_tensor(phi_p, dtype=torch.float64)
@@ -179,7 +180,7 @@ def fit_cage_by_consistency(cage_v, cage_f, source_landmarks, target_landmarks, 
         The character's matching landmarks ``q`` (row i matches row i).
     alignment : {"similarity", "none"} or Similarity, default "similarity"
         Template frame -> character frame (see the module docstring); ``"none"`` is the
-        identity. :func:`cagekit.alignment.box_alignment` gives the bounding-box-and-height
+        identity. :func:`cagekit.geometry.alignment.box_alignment` gives the bounding-box-and-height
         alignment.
     init : (k, 3) array_like of float, optional
         Starting cage in the *character's* frame; default ``C_s`` mapped by the alignment.
@@ -203,7 +204,7 @@ def fit_cage_by_consistency(cage_v, cage_f, source_landmarks, target_landmarks, 
 
     Examples
     --------
-    >>> from cagekit.shapes import box_cage
+    >>> from cagekit.cage.shapes import box_cage
     >>> v, f = box_cage()
     >>> p = np.random.default_rng(0).uniform(-0.5, 0.5, (8, 3))
     >>> fit = fit_cage_by_consistency(v, f, p, 2 * p + 1)

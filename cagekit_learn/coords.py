@@ -363,7 +363,7 @@ def mean_value_coordinates(points, cage_v, cage_f, *, snap: float | None = None,
     Examples
     --------
     >>> import torch
-    >>> from cagekit.shapes import box_cage
+    >>> from cagekit.cage.shapes import box_cage
     >>> v, f = box_cage()
     >>> cage = torch.tensor(v, requires_grad=True)
     >>> x = torch.tensor([[0.1, 0.2, -0.3]], dtype=torch.float64)
@@ -572,7 +572,7 @@ class CageBinding:
 
         Examples
         --------
-        >>> from cagekit.shapes import box_cage
+        >>> from cagekit.cage.shapes import box_cage
         >>> v, f = box_cage()
         >>> x = torch.tensor([[[0.5, 0.0, 0.0]]], dtype=torch.float64)
         >>> b = bind(x, torch.tensor(v), f)
@@ -603,7 +603,7 @@ def bind(points, cage_v, cage_f, method: str = "mvc", chunk_size: int = 2048) ->
 
     Examples
     --------
-    >>> from cagekit.shapes import box_cage
+    >>> from cagekit.cage.shapes import box_cage
     >>> v, f = box_cage()
     >>> b = bind(torch.zeros(2, 5, 3, dtype=torch.float64), torch.tensor(v), f)
     >>> tuple(b.weights.shape), b.n_points

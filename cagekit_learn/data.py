@@ -34,12 +34,12 @@ import numpy as np
 
 from cagekit.datasets import synthetic as _synthetic
 from cagekit.errors import CagekitWarning, InputError
-from cagekit.files import atomic_output
-from cagekit.frame import normalize
 from cagekit.geometry import as_count
+from cagekit.geometry.frame import normalize
+from cagekit.geometry.sampling import surface_samples
 from cagekit.io import SUPPORTED_MESH_EXTENSIONS, load_shape
+from cagekit.io.files import atomic_output
 from cagekit.progress import progress_bar
-from cagekit.sampling import surface_samples
 
 __all__ = [
     "CACHE_DIRNAME",

@@ -120,7 +120,7 @@ def green_coordinates(points, cage_v, cage_f, chunk_size: int = 1024):
 
     Examples
     --------
-    >>> from cagekit.shapes import box_cage
+    >>> from cagekit.cage.shapes import box_cage
     >>> v, f = box_cage()
     >>> x = torch.tensor([[0.1, 0.2, -0.3]], dtype=torch.float64)
     >>> phi, psi = green_coordinates(x, torch.tensor(v), f)

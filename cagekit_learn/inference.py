@@ -28,9 +28,9 @@ from cagekit.coords import bind
 from cagekit.coords.binding import warn_outside
 from cagekit.deformation import CageProblem, DeformResult, solve
 from cagekit.errors import CagekitWarning, InputError
-from cagekit.frame import Frame
 from cagekit.geometry import as_shape
-from cagekit.sampling import surface_samples
+from cagekit.geometry.frame import Frame
+from cagekit.geometry.sampling import surface_samples
 from cagekit_learn.networks import NeuralCages
 
 __all__ = ["ModelDeformer", "predict", "predict_fixed_source", "predict_cages",

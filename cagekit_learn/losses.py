@@ -3,8 +3,8 @@
 Every function takes a batch of ``B`` pairs (tensors with a leading batch dimension) and
 returns a ``(B,)`` tensor of per-pair values, for the caller to weight and average;
 gradients come from autograd, in float32 or float64, on any device. Each term is the same
-function as its NumPy form in :mod:`cagekit.losses`, value and gradient
-(``tests/test_learn_losses.py`` compares them), and states its formula. Chamfer uses squared
+function as its NumPy form in :mod:`cagekit.deformation.terms`, value and gradient
+(``tests/learn/test_learn_losses.py`` compares them), and states its formula. Chamfer uses squared
 distances, both directions summed, not halved; nearest neighbours are found without gradient
 (exact :func:`torch.cdist` in chunks) and held fixed. The PCA normal's backward is the
 first-order eigenvector perturbation, not :func:`torch.linalg.eigh`'s (NaN or inf wherever
@@ -21,13 +21,13 @@ from typing import NamedTuple
 import torch
 from torch.autograd.function import once_differentiable
 
-from cagekit.errors import InputError
-from cagekit.losses import (  # the paper's weights and the plane test, defined once
+from cagekit.deformation.terms import (  # the paper's weights and the plane test, defined once
     ALPHA_MVC,
     ALPHA_SHAPE,
     PLANE_GAP,
     axis_index,
 )
+from cagekit.errors import InputError
 
 __all__ = [
     "ALPHA_MVC",
@@ -117,7 +117,7 @@ def chamfer_loss(P: torch.Tensor, Q: torch.Tensor, *,
     -------
     (B,) tensor, dtype of ``P``
         ``mean_i min_j |P_i - Q_j|^2 + mean_j min_i |P_i - Q_j|^2``; differentiable with
-        the nearest neighbours held fixed (as :func:`cagekit.losses.chamfer_loss`).
+        the nearest neighbours held fixed (as :func:`cagekit.deformation.terms.chamfer_loss`).
 
     Examples
     --------
@@ -214,7 +214,7 @@ def cage_symmetry_loss(C: torch.Tensor, partner, offset, axis: str) -> torch.Ten
     C : (B, k, 3) float tensor
         Cage vertices.
     partner : (k,) integer tensor or array
-        From :func:`cagekit.losses.mirror_partners` on the rest cage.
+        From :func:`cagekit.deformation.terms.mirror_partners` on the rest cage.
     offset : (B, k, 3) or (k, 3) float tensor or array
         Likewise (0 for a symmetric rest cage).
     axis : {"x", "y", "z"}
@@ -227,7 +227,7 @@ def cage_symmetry_loss(C: torch.Tensor, partner, offset, axis: str) -> torch.Ten
     Examples
     --------
     >>> import numpy as np
-    >>> from cagekit.losses import mirror_partners
+    >>> from cagekit.deformation.terms import mirror_partners
     >>> C = np.array([[-1.0, 0, 0], [1.0, 0, 0], [0, 1.0, 0]])
     >>> partner, offset = mirror_partners(C, "x")
     >>> C2 = torch.tensor(C * [1, 2, 1])[None]
@@ -325,7 +325,7 @@ class ShapeReference(NamedTuple):
     distances : (B, r) float tensor
         Rest signed distances ``d^0`` of each own point to its plane.
     planar : (B, r) bool tensor or None
-        Rows whose rest neighbourhood has a plane (``cagekit.losses.PLANE_GAP``); the
+        Rows whose rest neighbourhood has a plane (``cagekit.deformation.terms.PLANE_GAP``); the
         losses average over these only. None: every row.
     """
 
@@ -361,7 +361,7 @@ class _SmallestEigenvector(torch.autograd.Function):
     so ``dL/dM = sym(-sum_k a_k v_k n^T)`` with ``a_k = (g . v_k) / (l_k - l_0)``; a pair
     whose gap is at most :func:`_gap_floor` times the trace (and at most the dtype's
     smallest normal number) contributes nothing. In float64 this is exactly
-    ``cagekit.losses._normal_backward``.
+    ``cagekit.deformation.terms._normal_backward``.
     """
 
     @staticmethod
@@ -419,7 +419,7 @@ def shape_reference(X: torch.Tensor, index, mask=None, own=None) -> ShapeReferen
     ShapeReference
         On ``X``'s device, in ``X``'s dtype. The batch keeps every row; rows without a
         plane (points on a line) are marked in ``planar`` and left out of the losses,
-        as :func:`cagekit.losses.shape_reference` drops them.
+        as :func:`cagekit.deformation.terms.shape_reference` drops them.
 
     Examples
     --------

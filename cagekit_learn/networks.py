@@ -178,7 +178,7 @@ class NeuralCages(nn.Module):
 
     def __init__(self, config: ModelConfig | None = None):
         super().__init__()
-        from cagekit.fitting import template_cage
+        from cagekit.cage.fitting import template_cage
 
         self.config = config = config or ModelConfig()
         if config.nc not in NC_VARIANTS:

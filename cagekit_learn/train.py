@@ -4,7 +4,7 @@ One step (:meth:`Trainer.step`): a batch of source-target pairs (:mod:`cagekit_l
 the model predicts a source cage and its deformation (:mod:`cagekit_learn.networks`), the
 source points are bound to the predicted cage with the differentiable MVC and moved, and
 the loss is ``L_align + ALPHA_MVC * L_MVC + alpha_shape * (L_p2f + L_normal) [+ L_symm]``
-(the paper's weights, :mod:`cagekit.losses`; ``L_align`` Chamfer, or the L2 distance of
+(the paper's weights, :mod:`cagekit.deformation.terms`; ``L_align`` Chamfer, or the L2 distance of
 corresponding points with ``align="l2"``). Adam at ``lr``, N_c at :data:`NC_LR_FACTOR` of it.
 Everything random is a function of ``(seed, epoch, step)`` and checkpoints hold the model,
 the optimiser, the counters and the RNG state, so a resumed run computes the weights of
@@ -38,9 +38,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from cagekit.deformation.terms import ALPHA_MVC, ALPHA_SHAPE
 from cagekit.errors import CagekitWarning, InputError
 from cagekit.geometry import as_count
-from cagekit.losses import ALPHA_MVC, ALPHA_SHAPE
 from cagekit.progress import progress_bar, progress_enabled
 from cagekit_learn import losses
 from cagekit_learn.checkpoint import (
@@ -103,7 +103,7 @@ class TrainConfig:
         Steps between checkpoints (and one at the end).
     alpha_shape : float
         Weight of the shape terms (the paper's 0.1; 0 turns them off). ``L_MVC`` has the
-        paper's weight :data:`cagekit.losses.ALPHA_MVC`, the symmetry term weight 1.
+        paper's weight :data:`cagekit.deformation.terms.ALPHA_MVC`, the symmetry term weight 1.
     symmetry : {"x", "y", "z"} or None
     align : {"chamfer", "l2"}
     augment : bool
@@ -224,7 +224,7 @@ def load_source_cage(cage_path, template=None) -> tuple[list, list]:
 
     from cagekit import io
     from cagekit.cage import check_cage
-    from cagekit.frame import normalize
+    from cagekit.geometry.frame import normalize
 
     cage_v, cage_f = io.load_mesh(cage_path)
     if template is not None:
@@ -416,7 +416,7 @@ def _fixed_source_cache(net, source, knn):
 
 
 def _template_partners(net, axis):
-    from cagekit.losses import mirror_partners
+    from cagekit.deformation.terms import mirror_partners
 
     key = f"_partners_{axis}"
     if not hasattr(net, key):
@@ -743,7 +743,7 @@ def fixed_source_matches(path, model: dict) -> bool:
         An unreadable or degenerate file (naming it).
     """
     from cagekit import io
-    from cagekit.frame import normalize
+    from cagekit.geometry.frame import normalize
 
     if model.get("fixed_source_points") is None:
         return False

@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 
 from cagekit.errors import InputError
-from cagekit.frame import normalize
 from cagekit.geometry import as_vertices
+from cagekit.geometry.frame import normalize
 from cagekit_learn.inference import predict_cages
 
 __all__ = ["check_model", "template_cage_learned"]

@@ -64,7 +64,7 @@ def find(catalog: str, stem: str):
 def fit_rig(V, F, seed: int = 0):
     """The template rig fitted to a character, the best of :data:`ARM_RATIOS`: (rig,
     parameters, posed rig vertices)."""
-    from cagekit.sampling import sample_surface
+    from cagekit.geometry.sampling import sample_surface
 
     samples = sample_surface(V, F, 4000, seed=seed)  # the same for every arm length
     fits = [_fit_rig(V, samples, ratio) for ratio in ARM_RATIOS]
@@ -116,8 +116,8 @@ def snap(V, F, points, normals, names, seed: int = 0):
     import igl
     from scipy.spatial import cKDTree
 
-    from cagekit.landmarks import SurfacePoint
-    from cagekit.sampling import sample_surface
+    from cagekit.geometry.sampling import sample_surface
+    from cagekit.io.landmarks import SurfacePoint
 
     samples, faces = sample_surface(V, F, 200_000, seed=seed, return_faces=True)
     face_normals = np.asarray(igl.per_face_normals(V, F, np.array([0.0, 0.0, 1.0])))
@@ -139,7 +139,7 @@ def snap(V, F, points, normals, names, seed: int = 0):
 
 def main(argv=None) -> None:
     from cagekit import io
-    from cagekit.landmarks import save_picked
+    from cagekit.io.landmarks import save_picked
     from cagekit.render import render_meshes
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])

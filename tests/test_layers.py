@@ -92,3 +92,12 @@ def test_the_blender_add_on_imports_nothing_from_apps():
              for line, module, _ in imports(f"cagekit_blender.{path.stem}", path)
              if module == "apps" or module.startswith("apps.")]
     assert found == []
+
+
+def test_the_architecture_document_maps_every_module_as_the_code_is():
+    """docs/architecture.md's module map is the code's: each module, its docstring's first
+    sentence and what it imports (regenerate with ``make architecture``)."""
+    import architecture
+
+    assert architecture.documented() == architecture.block(), \
+        "docs/architecture.md's module map is out of date: run make architecture"

@@ -8,8 +8,9 @@ from hypothesis import given, settings
 from scipy.spatial.transform import Rotation
 
 from cagekit.errors import InputError
-from cagekit.frame import normalize
 from cagekit.geometry import cotangent_laplacian
+from cagekit.geometry.frame import normalize
+from cagekit.geometry.sampling import surface_samples
 from cagekit.metrics import (
     chamfer,
     chamfer_distance,
@@ -19,7 +20,6 @@ from cagekit.metrics import (
     planarity,
     symmetry_error,
 )
-from cagekit.sampling import surface_samples
 
 
 def ellipsoid(axes=(1.0, 2.0, 0.5), offset=(0.0, 0.0, 0.0)):

@@ -36,8 +36,8 @@ import numpy as np
 
 from cagekit.batch.collection import SYNTHETIC_PREFIX, Shape, file_hash, find_shapes, load_shape_of
 from cagekit.errors import CagekitWarning, InputError
-from cagekit.files import atomic_output, one_line, read_text
 from cagekit.interrupts import sigint_deferred
+from cagekit.io.files import atomic_output, one_line, read_text
 
 __all__ = ["COLUMNS", "COORDS", "MAX_CD", "MAX_NONAFFINITY", "METHODS", "SHEET_COLUMNS", "Item",
            "amplify", "contact_sheet", "deform_item", "plan_pairs", "prepare_worker",
@@ -345,8 +345,8 @@ def _loaded(role, location):
 
 def _fit(Vs, Fs, seed):
     """The cage :func:`cagekit.deform` would fit, in the source's own frame."""
-    from cagekit.fitting import fit_cage
-    from cagekit.frame import Frame
+    from cagekit.cage.fitting import fit_cage
+    from cagekit.geometry.frame import Frame
 
     frame = Frame.of(Vs, name="the source")
     cage_n, cage_f = fit_cage(frame.to_unit(Vs), Fs, faces=CAGE_FACES, seed=seed,

@@ -54,14 +54,15 @@ __all__ = ["BIND_CHUNK", "COORDINATE_METHODS", "DEFORM_COORDINATE_METHODS", "FIT
 BIND_CHUNK = 20_000
 
 #: choices of the library (:data:`cagekit.coords.binding.METHODS`,
-#: :data:`cagekit.fitting.METHODS`), listed here so that starting the command line imports
+#: :data:`cagekit.cage.fitting.METHODS`), listed here so that starting the command line imports
 #: neither numba nor libigl (tests check that they match)
 COORDINATE_METHODS = ("mvc", "green")
 #: the coordinates ``cagekit deform``'s energy takes (:data:`cagekit.deformation.COORDS`)
 DEFORM_COORDINATE_METHODS = ("mvc", "green")
 FIT_METHODS = ("wrap", "template")
 TEMPLATE_FACES = 80
-#: the face budget's range (:data:`cagekit.fitting.MIN_FACES`, :data:`~cagekit.fitting.MAX_FACES`)
+#: the face budget's range (:data:`cagekit.cage.fitting.MIN_FACES`,
+#: :data:`~cagekit.cage.fitting.MAX_FACES`)
 MIN_FACES, MAX_FACES = 4, 100_000
 
 

@@ -89,7 +89,7 @@ def _load_landmark_pair(src_path, tgt_path):
     import warnings
 
     from cagekit.errors import CagekitWarning
-    from cagekit.landmarks import load_landmarks, match_landmarks
+    from cagekit.io.landmarks import load_landmarks, match_landmarks
 
     match = match_landmarks(load_landmarks(src_path), load_landmarks(tgt_path),
                             source_name=src_path, target_name=tgt_path)
@@ -166,7 +166,7 @@ def deform(ctx, source, target, out, method, cage_path, faces, save_cage, symmet
     cloud (noisy or coarse; a scan seen from one side wants --target-kind partial). With
     --method cage (the default) SOURCE's cage is moved to minimise Chamfer distance to
     TARGET plus the paper's shape-preservation and cage terms (see
-    cagekit/deformation.py); the result is written in TARGET's frame and units. --json
+    cagekit/deformation/); the result is written in TARGET's frame and units. --json
     prints CD and dCotLap (as `cagekit eval`), each term's value, the iterations and
     seconds.
 

@@ -60,7 +60,7 @@ def fit_cage(ctx, mesh, out, faces, method, components, preview, up, seed, as_js
       cagekit fit-cage shape.obj -o cage.obj --faces 200 --preview cage.png
     """
     from cagekit import io
-    from cagekit.fitting import fit_cage as fit
+    from cagekit.cage.fitting import fit_cage as fit
 
     start_command(ctx)
     if method == "template" and faces < TEMPLATE_FACES:

@@ -51,8 +51,8 @@ def synth(ctx, family, count, out, seed, fmt, resolution, as_json):
       cagekit synth chairs -n 10 -o chairs/ --seed 100
     """
     from cagekit.datasets.synthetic import FAMILIES as MAKERS
-    from cagekit.files import output_folder
     from cagekit.io import save_mesh
+    from cagekit.io.files import output_folder
 
     start_command(ctx)
     if os.path.exists(out) and not os.path.isdir(out):

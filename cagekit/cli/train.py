@@ -137,7 +137,7 @@ def train(ctx, data, run_dir, epochs, batch_size, lr, device, resume, points, bo
         model=model.to_dict(), fixed_source=fixed_source)
     if resume:
         _refuse_contradictions(ctx, config, source_cage)
-    from cagekit.files import output_folder
+    from cagekit.io.files import output_folder
 
     with output_folder(run_dir):  # a run that fails before writing leaves no empty folder
         result = run(config, resume=resume, progress=progress_enabled())

@@ -184,7 +184,7 @@ def _load(template, template_cage, template_landmarks, character, character_land
     from cagekit import io
     from cagekit.cage import check_cage
     from cagekit.coords.binding import warn_outside
-    from cagekit.landmarks import load_landmarks
+    from cagekit.io.landmarks import load_landmarks
 
     Vt, Ft = io.load_mesh(template)
     marks_t = load_landmarks(template_landmarks)
@@ -192,7 +192,7 @@ def _load(template, template_cage, template_landmarks, character, character_land
     marks_c = load_landmarks(character_landmarks)
     pose_meshes = [io.load_mesh(path) for path in pose_paths]
     if template_cage == AUTO:
-        from cagekit.fitting import fit_cage
+        from cagekit.cage.fitting import fit_cage
 
         try:
             cage_v, cage_f = fit_cage(Vt, Ft, faces=cage_faces, seed=seed)
@@ -243,7 +243,7 @@ def _transfer_poses(char, template, template_cage, pose_paths, pose_meshes, mode
 def _write(out, char, pose_paths, names, results, pose_meshes, grid_path):
     """The transferred poses, the character's cage and the picture; a row per pose."""
     from cagekit import io
-    from cagekit.files import output_folder
+    from cagekit.io.files import output_folder
     from cagekit.transfer.character import render_grid
 
     with output_folder(out):
@@ -263,7 +263,7 @@ def _write(out, char, pose_paths, names, results, pose_meshes, grid_path):
 def _report(out, char, rows, seconds, start, template, template_cage, character, model,
             rule, root, align, coords, grid_path) -> dict:
     """Write report.json and return it."""
-    from cagekit.files import atomic_output
+    from cagekit.io.files import atomic_output
 
     fit = char.fit
     report = {

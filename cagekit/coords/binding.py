@@ -80,7 +80,7 @@ class CageBinding:
 
         Examples
         --------
-        >>> from cagekit.shapes import box_cage
+        >>> from cagekit.cage.shapes import box_cage
         >>> v, f = box_cage()
         >>> b = bind([[0.5, 0.0, 0.0]], v, f)
         >>> (b.deform(2 * v).round(12) + 0.0).tolist()  # + 0.0: no negative zero
@@ -143,7 +143,7 @@ class GreenBinding:
 
         Examples
         --------
-        >>> from cagekit.shapes import box_cage
+        >>> from cagekit.cage.shapes import box_cage
         >>> v, f = box_cage()
         >>> b = bind([[0.5, 0.0, 0.0]], v, f, method="green")
         >>> (b.deform(2 * v + 1).round(12) + 0.0).tolist()  # similarities are exact
@@ -215,7 +215,7 @@ def bind(points, cage_v, cage_f, method: str = "mvc", *,
 
     Examples
     --------
-    >>> from cagekit.shapes import box_cage
+    >>> from cagekit.cage.shapes import box_cage
     >>> v, f = box_cage()
     >>> b = bind(np.zeros((1, 3)), v, f)
     >>> b.weights.shape, round(float(b.weights.sum()), 12)
@@ -262,7 +262,7 @@ def warn_outside(points, cage_v, cage_f, *, shape: str = "the shape",
     Examples
     --------
     >>> import warnings
-    >>> from cagekit.shapes import box_cage
+    >>> from cagekit.cage.shapes import box_cage
     >>> v, f = box_cage()
     >>> with warnings.catch_warnings(record=True) as caught:
     ...     warnings.simplefilter("always")

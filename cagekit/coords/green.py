@@ -57,7 +57,7 @@ import numpy as np
 from cagekit.coords.fastangle import angle_from_sin_cos
 from cagekit.coords.fastlog import log_ratio
 from cagekit.coords.lanes import load_lanes
-from cagekit.frame import bounding_box_diagonal
+from cagekit.geometry.frame import bounding_box_diagonal
 
 __all__ = ["green_coordinates", "evaluation_plan", "EvaluationPlan", "FaceTerms", "stretch_factors",
            "unit_normals", "SNAP", "INSET"]
@@ -339,7 +339,7 @@ def stretch_factors(rest_v, new_v, cage_f) -> np.ndarray:
 
     Examples
     --------
-    >>> from cagekit.shapes import box_cage
+    >>> from cagekit.cage.shapes import box_cage
     >>> v, f = box_cage()
     >>> bool(np.allclose(stretch_factors(v, 3.0 * v + 1.0, f), 3.0))
     True
@@ -390,7 +390,7 @@ def green_coordinates(points, cage_v, cage_f) -> tuple[np.ndarray, np.ndarray]:
 
     Examples
     --------
-    >>> from cagekit.shapes import box_cage
+    >>> from cagekit.cage.shapes import box_cage
     >>> v, f = box_cage()
     >>> phi, psi = green_coordinates([[0.1, 0.2, -0.3]], v, f)
     >>> n, _ = unit_normals(v, f)
@@ -561,7 +561,7 @@ class FaceTerms:
 
     Examples
     --------
-    >>> from cagekit.shapes import box_cage
+    >>> from cagekit.cage.shapes import box_cage
     >>> v, f = box_cage()
     >>> terms = FaceTerms(v, f)
     >>> n, _ = unit_normals(v, f)

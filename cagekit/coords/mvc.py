@@ -29,7 +29,7 @@ import numpy as np
 from cagekit.cage import cage_topology, distance_in_diagonals
 from cagekit.coords.fastangle import half_angle_over_sin
 from cagekit.coords.lanes import load_lanes
-from cagekit.frame import bounding_box_diagonal
+from cagekit.geometry.frame import bounding_box_diagonal
 
 __all__ = ["mean_value_coordinates", "affine_extension_weights", "affine_extension_matrix",
            "closest_point_weights", "DEFAULT_SNAP", "FAR_BLEND"]
@@ -358,7 +358,7 @@ def mean_value_coordinates(points, cage_v, cage_f, snap: float = DEFAULT_SNAP,
 
     Examples
     --------
-    >>> from cagekit.shapes import box_cage
+    >>> from cagekit.cage.shapes import box_cage
     >>> v, f = box_cage()
     >>> w = mean_value_coordinates([[0.1, 0.2, -0.3]], v, f)
     >>> bool(np.allclose(w.sum(axis=1), 1.0)), bool(np.allclose(w @ v, [[0.1, 0.2, -0.3]]))
@@ -470,7 +470,7 @@ def affine_extension_weights(points, cage_v, cage_f) -> np.ndarray:
 
     Examples
     --------
-    >>> from cagekit.shapes import box_cage
+    >>> from cagekit.cage.shapes import box_cage
     >>> v, f = box_cage()
     >>> w = affine_extension_weights([[1e6, 0.0, 0.0]], v, f)
     >>> ((w @ v).round(6) + 0.0).tolist(), round(float(w.sum()), 9)

@@ -39,7 +39,7 @@ def mean_value_coordinates_textbook(points, cage_v, cage_f, eps: float = 1e-8,
 
     Examples
     --------
-    >>> from cagekit.shapes import box_cage
+    >>> from cagekit.cage.shapes import box_cage
     >>> v, f = box_cage()
     >>> w = mean_value_coordinates_textbook([[0.1, 0.2, -0.3]], v, f)
     >>> bool(np.allclose(w @ v, [[0.1, 0.2, -0.3]]))

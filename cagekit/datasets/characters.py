@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cagekit.datasets import humanoid
-from cagekit.landmarks import SurfacePoint
+from cagekit.io.landmarks import SurfacePoint
 
 __all__ = ["CHARACTERS", "UNLIKE_CHARACTERS", "FINGERS", "MISSING", "MISSPELT", "Character",
            "character", "rest_pose", "surface_landmarks"]
@@ -132,7 +132,7 @@ class Character:
         The rest pose's joint rotations from the canonical T-pose (the local rotations
         :meth:`cagekit.datasets.humanoid.Rig.pose` takes), not relative to anything of
         the character's.
-    landmarks : list of cagekit.landmarks.SurfacePoint
+    landmarks : list of cagekit.io.landmarks.SurfacePoint
         On the rest-pose surface, with :data:`MISSING` left out and :data:`MISSPELT`
         misspelt.
     """
@@ -227,7 +227,7 @@ def surface_landmarks(vertices, faces, anchors, labels, seed: int = 0) -> list[S
 
     Returns
     -------
-    list of cagekit.landmarks.SurfacePoint
+    list of cagekit.io.landmarks.SurfacePoint
     """
     import igl
 

@@ -1,4 +1,4 @@
-"""Landmark-driven deformation transfer to a novel character ("Neural Cages", section 4.2).
+"""A transfer run: the character's cage and binding once, then each template pose carried over.
 
 The template (rest pose, cage ``C_s``, example poses as meshes) and a novel character (rest
 pose, landmarks whose labels match the template's): the character's cage ``C_c`` is fitted
@@ -34,7 +34,7 @@ from cagekit.datasets.humanoid import RIGID_PARTS, landmark_part
 from cagekit.deformation import deform
 from cagekit.errors import InputError
 from cagekit.geometry import as_vertices, cotangent_laplacian
-from cagekit.landmarks import LandmarkMatch, match_landmarks
+from cagekit.io.landmarks import LandmarkMatch, match_landmarks
 from cagekit.transfer.character_cage import CharacterCageFit, fit_character_cage
 from cagekit.transfer.loose_pieces import LoosePieces, find_loose_pieces
 from cagekit.transfer.rules import has_rotation, transfer_cage
@@ -73,7 +73,7 @@ class CharacterCage:
     cage_f : (f, 3) int64
     fit : cagekit.transfer.character_cage.CharacterCageFit
         Its landmark errors, consistency, checks and alignment.
-    match : cagekit.landmarks.LandmarkMatch
+    match : cagekit.io.landmarks.LandmarkMatch
     binding : cagekit.transfer.surface_binding.SurfaceBinding
         The character bound to ``C_c``: mean value coordinates (or Green coordinates),
         mended along the mesh where the cage folds between touching parts.
@@ -163,7 +163,7 @@ def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
         The novel character in rest pose (any number of parts, open or closed).
     align : {"box", "similarity"}, default "box"
         How the rest poses are aligned before the fit: bounding-box centres and heights
-        (:func:`cagekit.alignment.box_alignment`), or the landmarks' similarity.
+        (:func:`cagekit.geometry.alignment.box_alignment`), or the landmarks' similarity.
     coords : {"mvc", "green"}, default "mvc"
         How the character follows its cage (:func:`cagekit.transfer.surface_binding.bind_surface`):
         mean value coordinates, or Green coordinates where no mending is needed. The
@@ -184,7 +184,7 @@ def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
         character (:func:`cagekit.transfer.surface_binding.check_coupling`; the message says what
         failed).
     """
-    from cagekit.alignment import box_alignment, similarity_alignment
+    from cagekit.geometry.alignment import box_alignment, similarity_alignment
 
     match = match_landmarks(template_landmarks, character_landmarks,
                             source_name=template_name, target_name=character_name)
@@ -436,7 +436,7 @@ def cage_oracle(weights, truth_v) -> tuple[np.ndarray, np.ndarray]:
     Examples
     --------
     >>> from cagekit.coords import bind
-    >>> from cagekit.shapes import box_cage
+    >>> from cagekit.cage.shapes import box_cage
     >>> cage_v, cage_f = box_cage()
     >>> points = np.array([[0.1, 0.2, 0.3], [-0.5, 0.0, 0.4], [0.0, -0.6, 0.0]])
     >>> W = bind(points, cage_v, cage_f).weights

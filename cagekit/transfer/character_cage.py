@@ -20,7 +20,7 @@ mapped back by ``alignment``), local/global iterations (Sorkine & Alexa 2007) mi
   outside four-fold more, until every vertex is in.
 
 Each global step is Newton on that energy plus the cage's self-contact barrier
-(:mod:`cagekit.barrier`), every step shortened to the part of its path along which no face
+(:mod:`cagekit.cage.contact`), every step shortened to the part of its path along which no face
 crosses another: the cage starts as the template's, free of self-intersection, and stays
 so, however close the character's limbs hang to its body (walls of neighbouring tubes
 squeeze together instead of crossing). Then the checks (:func:`cage_checks`): closed by
@@ -40,8 +40,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from cagekit.alignment import Similarity
-from cagekit.barrier import DHAT, STIFFNESS, SelfContact, minimise_with_contact
 from cagekit.cage import (
     check_cage,
     self_intersecting_faces,
@@ -49,10 +47,12 @@ from cagekit.cage import (
     unique_edges,
     winding_numbers,
 )
+from cagekit.cage.contact import DHAT, STIFFNESS, SelfContact, minimise_with_contact
 from cagekit.coords import bind
 from cagekit.errors import CageError, CageFitError, InputError
-from cagekit.frame import Frame
 from cagekit.geometry import as_vertices, polar
+from cagekit.geometry.alignment import Similarity
+from cagekit.geometry.frame import Frame
 
 __all__ = ["CharacterCageFit", "fit_character_cage", "cage_checks", "missed_landmarks",
            "nearest_landmarks", "LANDMARK_WEIGHT", "MARGIN"]
@@ -146,7 +146,7 @@ def cage_checks(points, cage_v, cage_f) -> dict:
 
     Examples
     --------
-    >>> from cagekit.shapes import box_cage
+    >>> from cagekit.cage.shapes import box_cage
     >>> v, f = box_cage()
     >>> c = cage_checks(np.zeros((1, 3)), v, f)
     >>> c["valid"], c["outside"]
@@ -264,7 +264,8 @@ def fit_character_cage(cage_v, cage_f, source_landmarks, target_landmarks, chara
         must be enclosed).
     alignment : Similarity
         Template frame -> character frame
-        (:func:`cagekit.alignment.box_alignment`, :func:`~cagekit.alignment.similarity_alignment`).
+        (:func:`cagekit.geometry.alignment.box_alignment`,
+        :func:`~cagekit.geometry.alignment.similarity_alignment`).
     landmark_weight : float, default :data:`LANDMARK_WEIGHT`
     margin : float, default :data:`MARGIN`
         How far past each character vertex the enclosure contacts push the cage, in cage
@@ -297,8 +298,8 @@ def fit_character_cage(cage_v, cage_f, source_landmarks, target_landmarks, chara
 
     Examples
     --------
-    >>> from cagekit.alignment import similarity_alignment
-    >>> from cagekit.shapes import box_cage
+    >>> from cagekit.geometry.alignment import similarity_alignment
+    >>> from cagekit.cage.shapes import box_cage
     >>> v, f = box_cage()
     >>> p = np.random.default_rng(0).uniform(-0.4, 0.4, (8, 3))
     >>> A = similarity_alignment(p, 2 * p + 1)

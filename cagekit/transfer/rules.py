@@ -42,12 +42,12 @@ import numpy as np
 import scipy.sparse
 import scipy.sparse.linalg
 
-from cagekit.alignment import Similarity, similarity_alignment
 from cagekit.cage import face_components, winding_numbers
 from cagekit.coords.mvc import mean_value_coordinates
 from cagekit.errors import InputError
-from cagekit.frame import Frame
 from cagekit.geometry import as_vertices, polar
+from cagekit.geometry.alignment import Similarity, similarity_alignment
+from cagekit.geometry.frame import Frame
 
 __all__ = ["RULES", "PART_ANGLE", "PART_REACH", "PART_SPREAD", "SHAPE_NOISE", "face_gradients",
            "has_rotation", "polar", "root_weights", "shape_rotations", "transfer_offsets",
@@ -109,7 +109,7 @@ def face_gradients(rest_v, deformed_v, faces) -> np.ndarray:
 
     Examples
     --------
-    >>> from cagekit.shapes import box_cage
+    >>> from cagekit.cage.shapes import box_cage
     >>> v, f = box_cage()
     >>> bool(np.allclose(face_gradients(v, 2 * v + 1, f), 2 * np.eye(3)))
     True
@@ -189,7 +189,7 @@ def transfer_pose(template_cage_v, deformed_template_cage_v, character_cage_v, c
     leaves the template still, is turned back (pose transfer; the offsets rule would
     leave it turned):
 
-    >>> from cagekit.shapes import box_cage
+    >>> from cagekit.cage.shapes import box_cage
     >>> v, f = box_cage()
     >>> turn = np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]])
     >>> out = transfer_pose(v, v, v @ turn.T, f, Similarity.identity())
@@ -248,7 +248,7 @@ def shape_rotations(template_cage_v, character_cage_v, cage_f, parts) -> np.ndar
     The face's rotation from the template's rest cage to the character's (``R_c`` of the
     polar decomposition) is its part's rotation ``R_p`` (the best rotation of the part's
     points on the template onto the same points on the character, Kabsch/Umeyama:
-    :func:`cagekit.alignment.similarity_alignment`) times the
+    :func:`cagekit.geometry.alignment.similarity_alignment`) times the
     face's shape rotation ``R_p^T R_c``. A part turned less than :data:`PART_ANGLE` from
     the template's rest orientation keeps that shape rotation in proportion
     (``1 - angle / PART_ANGLE``); one turned more is posed otherwise and keeps none. Faces
@@ -288,7 +288,7 @@ def shape_rotations(template_cage_v, character_cage_v, cage_f, parts) -> np.ndar
     A character whose cage is the template's own: nothing is turned, every face keeps
     the identity.
 
-    >>> from cagekit.shapes import box_cage
+    >>> from cagekit.cage.shapes import box_cage
     >>> v, f = box_cage()
     >>> parts = [(v[:4] * 0.5, v[:4] * 0.5), (v[4:] * 0.5, v[4:] * 0.5)]
     >>> bool(np.allclose(shape_rotations(v, v, f, parts), np.eye(3)))
@@ -422,7 +422,7 @@ def root_weights(template_cage_v, deformed_template_cage_v, cage_f,
 
     Examples
     --------
-    >>> from cagekit.shapes import box_cage
+    >>> from cagekit.cage.shapes import box_cage
     >>> v, f = box_cage()
     >>> w = root_weights(v, v + [1.0, 0.0, 0.0], f)  # carried along: its centre
     >>> bool(np.linalg.norm(w @ v) < 0.05 * np.linalg.norm(np.ptp(v, axis=0)))

@@ -195,7 +195,7 @@ def bind_surface(vertices, faces, cage_v, cage_f, *, weights=None,
 
     Examples
     --------
-    >>> from cagekit.shapes import box_cage
+    >>> from cagekit.cage.shapes import box_cage
     >>> v, f = box_cage()
     >>> points = np.array([[0.1, 0.2, 0.3], [0.0, -0.5, 0.2], [0.4, 0.1, -0.6]])
     >>> b = bind_surface(points, np.array([[0, 1, 2]]), v, f)

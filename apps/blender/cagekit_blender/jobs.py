@@ -43,10 +43,10 @@ class Progress:
 
 
 def one_line(exc: BaseException) -> str:
-    """An exception as one line of text (:func:`cagekit.files.one_line`), named by its type
+    """An exception as one line of text (:func:`cagekit.io.files.one_line`), named by its type
     unless it is one of cagekit's errors, which are written for people."""
     from cagekit.errors import InputError
-    from cagekit.files import one_line as line
+    from cagekit.io.files import one_line as line
 
     text = line(exc)
     if isinstance(exc, (InputError, FloatingPointError)) or text == type(exc).__name__:

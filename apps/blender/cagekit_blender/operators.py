@@ -247,7 +247,7 @@ class CAGEKIT_OT_transfer_pose(jobs.Job, bpy.types.Operator):
     seed: IntProperty(name="Seed", default=0, min=0)
 
     def gather(self, context):
-        from cagekit.landmarks import load_landmarks
+        from cagekit.io.landmarks import load_landmarks
 
         template = _object(self.template, "template")
         cage = _object(self.template_cage, "template cage")

@@ -1,0 +1,24 @@
+"""Files in and out: meshes and point clouds, landmarks, checked reading and atomic writing.
+
+- :mod:`~cagekit.io.meshes`: :func:`load_mesh`, :func:`save_mesh`, point clouds;
+- :mod:`~cagekit.io.landmarks`: landmark files and matching landmarks by label;
+- :mod:`~cagekit.io.files`: checked reading, atomic writing, output folders removed on
+  failure.
+
+The mesh and landmark functions are re-exported here (``cagekit.io.load_mesh``).
+"""
+
+from cagekit.io.landmarks import load_landmarks, save_landmarks, save_picked
+from cagekit.io.meshes import (
+    SUPPORTED_MESH_EXTENSIONS,
+    SUPPORTED_POINT_EXTENSIONS,
+    load_mesh,
+    load_points,
+    load_shape,
+    save_mesh,
+    save_points,
+)
+
+__all__ = ["SUPPORTED_MESH_EXTENSIONS", "SUPPORTED_POINT_EXTENSIONS", "load_landmarks",
+           "load_mesh", "load_points", "load_shape", "save_landmarks", "save_mesh",
+           "save_picked", "save_points"]

@@ -1,0 +1,82 @@
+"""The humanoid data set with ground truth (apps.humanoid_data)."""
+
+import numpy as np
+import pytest
+from builders import small_humanoid_data
+
+from apps import humanoid_data
+from cagekit import io
+from cagekit.cage import cage_encloses, check_cage
+from cagekit.datasets import characters, humanoid
+from cagekit.errors import InputError
+from cagekit.io.landmarks import load_landmarks
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory):
+    """A small data set: template, cage, one novel body, two poses with ground truth."""
+    out = tmp_path_factory.mktemp("humanoid")
+    return out, small_humanoid_data(out)
+
+
+def test_data_set_is_consistent(data):
+    out, summary = data
+    Vt, Ft = io.load_mesh(out / "template.obj")
+    Vc, Fc = io.load_mesh(out / "characters" / "stocky.obj")
+    V0, F0 = io.load_mesh(out / "poses" / "pose_000.obj")
+    G0, _ = io.load_mesh(out / "truth" / "stocky" / "pose_000.obj")
+    assert np.array_equal(Ft, Fc) and np.array_equal(Ft, F0)
+    assert len(Vt) == len(Vc) == len(V0) == len(G0) == summary["template_vertices"]
+    assert not np.allclose(V0, Vt) and not np.allclose(G0, Vc)
+    # the ground truth is the character posed with the test pose's rotations
+    pose = humanoid.random_pose(humanoid_data.TEST_POSE_SEED)
+    np.testing.assert_allclose(G0, humanoid.rig("stocky", resolution=0.5).pose(pose),
+                               atol=1e-9)
+    marks = load_landmarks(out / "template_landmarks.json")
+    assert len(marks) == 40
+    rig = humanoid.rig("template", resolution=0.5)
+    for label, xyz in marks.items():
+        np.testing.assert_allclose(xyz, rig.vertices[rig.landmarks[label]], atol=1e-12)
+    assert len(list((out / "train").iterdir())) == 2
+    cage_v, cage_f = io.load_mesh(out / "template_cage.obj")
+    assert cage_encloses(Vt, cage_v, cage_f) and summary["cage"] == "artist"
+
+
+def test_novel_characters_and_reverse_examples(data):
+    out, summary = data
+    assert summary["characters"] == ["a_pose"]
+    char = characters.character("a_pose", labels=humanoid_data.landmark_names(40))
+    V, F = io.load_mesh(out / "characters" / "a_pose.obj")
+    np.testing.assert_allclose(V, char.vertices, atol=1e-12)
+    marks = load_landmarks(out / "characters" / "a_pose.picked")
+    assert "l_heel" in humanoid_data.landmark_names(40)
+    assert "L_heel" in marks and "l_heel" not in marks  # misspelt, as real files are
+    truth, _ = io.load_mesh(out / "truth" / "a_pose" / "pose_001.obj")
+    pose = humanoid.random_pose(humanoid_data.TEST_POSE_SEED + 1)
+    np.testing.assert_allclose(truth, char.truth(pose), atol=1e-9)
+    t_pose, _ = io.load_mesh(out / "truth" / "a_pose" / "t_pose.obj")
+    np.testing.assert_allclose(t_pose, char.truth({}), atol=1e-9)
+    # each reverse example: the template in a rest-like pose, its skinned cage (valid,
+    # enclosing it) and its landmarks moved with it
+    rig = humanoid.rig("template", resolution=0.5)
+    assert summary["reverse_poses"] == len(humanoid_data.REVERSE_POSES)
+    for i, angles in enumerate(humanoid_data.REVERSE_POSES):
+        stem = out / "reverse" / f"pose_{i:02d}"
+        Vp, _ = io.load_mesh(f"{stem}.obj")
+        cage_v, cage_f = io.load_mesh(f"{stem}_cage.obj")
+        check_cage(cage_v, cage_f)
+        assert cage_encloses(Vp, cage_v, cage_f)
+        posed = load_landmarks(f"{stem}_landmarks.json")
+        for label, xyz in posed.items():
+            np.testing.assert_allclose(xyz, Vp[rig.landmarks[label]], atol=1e-12)
+        np.testing.assert_allclose(Vp, rig.pose(characters.rest_pose(**angles)), atol=1e-9)
+
+
+def test_landmark_names_spread_and_bounds():
+    names = humanoid_data.landmark_names(80)
+    assert len(set(names)) == 80 and set(names) <= set(humanoid.LANDMARK_NAMES)
+    every = humanoid.LANDMARK_NAMES
+    assert names[0] == every[0] and names[-1] == every[-1]  # the whole list is spanned
+    assert humanoid_data.landmark_names(len(every)) == list(every)
+    with pytest.raises(InputError):
+        humanoid_data.landmark_names(3)

@@ -1,0 +1,63 @@
+"""Tests of cagekit.geometry.frame: the paper's normalisation and bounding boxes at any scale."""
+
+import numpy as np
+import pytest
+from builders import SQUARE_V
+
+from cagekit.errors import InputError
+from cagekit.geometry.frame import denormalize, normalize
+
+
+def test_normalize_frame_and_round_trip():
+    rng = np.random.default_rng(3)
+    V = rng.normal(size=(200, 3)) * [3.0, 0.5, 1.0] + [10.0, -4.0, 2.0]
+    Vn, center, scale = normalize(V)
+    assert (
+        center.shape == (3,) and center.dtype == np.float64 and isinstance(scale, float)
+    )
+    np.testing.assert_allclose(center, (V.min(0) + V.max(0)) / 2)
+    assert scale == pytest.approx(np.max(V.max(0) - V.min(0)) / 2)
+    assert np.abs(Vn).max() == pytest.approx(1.0, abs=1e-15)
+    np.testing.assert_allclose(Vn.min(0) + Vn.max(0), 0.0, atol=1e-15)
+    longest = np.argmax(V.max(0) - V.min(0))
+    assert Vn[:, longest].max() == pytest.approx(1.0, abs=1e-15)
+    assert Vn[:, longest].min() == pytest.approx(-1.0, abs=1e-15)
+    np.testing.assert_allclose(denormalize(Vn, center, scale), V, rtol=0, atol=1e-13)
+
+
+def test_normalize_rejects_degenerate_input():
+    with pytest.raises(InputError, match="zero extent"):
+        normalize([[1.0, 2.0, 3.0]])
+    with pytest.raises(InputError, match="zero extent"):
+        normalize(np.ones((5, 3)))
+    with pytest.raises(InputError, match="no points"):
+        normalize(np.zeros((0, 3)))
+    with pytest.raises(InputError, match="NaN"):
+        normalize([[0, 0, 0], [np.nan, 1, 1]])
+    with pytest.raises(InputError):
+        denormalize(SQUARE_V, [0, 0, 0], 0.0)
+    with pytest.raises(InputError):
+        denormalize(SQUARE_V, [0, 0], 1.0)
+
+
+@pytest.mark.parametrize("scale", [1e-290, 1e-150, 1.0, 1e150, 1e300])
+def test_bounding_box_is_resolvable_at_any_scale(scale):
+    from cagekit.geometry.frame import bounding_box, bounding_box_diagonal
+
+    V = np.array([[0.0, 0, 0], [2.0, 1, 0], [1.0, 0, 1]]) * scale + 3.0 * scale
+    center, extent = bounding_box(V)
+    np.testing.assert_allclose(center / scale, [4.0, 3.5, 3.5], rtol=1e-15)
+    np.testing.assert_allclose(extent / scale, [2.0, 1.0, 1.0], rtol=1e-15)
+    assert bounding_box_diagonal(extent) / scale == pytest.approx(np.sqrt(6.0), rel=1e-15)
+    assert np.abs(normalize(V)[0]).max() == pytest.approx(1.0)
+
+
+def test_bounding_box_refuses_what_float64_cannot_resolve():
+    from cagekit.geometry.frame import bounding_box
+
+    with pytest.raises(InputError, match="too small to resolve"):
+        bounding_box([[0.0, 0, 0], [1e-300, 0, 0]])
+    with pytest.raises(InputError, match="overflows"):
+        bounding_box([[-1e308, 0, 0], [1e308, 0, 0]])
+    with pytest.raises(InputError, match="coincide"):
+        bounding_box([[5.0, 5, 5], [5.0, 5, 5]])

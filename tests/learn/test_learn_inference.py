@@ -1,0 +1,220 @@
+"""Inference from a checkpoint (`cagekit deform --model`, `--refine`) and `cagekit train`."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+
+from builders import REPOSITORY as ROOT  # noqa: E402
+
+from cagekit import bind, io  # noqa: E402
+from cagekit.cli import main  # noqa: E402
+from cagekit.datasets import synthetic  # noqa: E402
+from cagekit.geometry.frame import normalize  # noqa: E402
+from cagekit.geometry.sampling import surface_samples  # noqa: E402
+from cagekit.metrics import evaluate  # noqa: E402
+from cagekit_learn.inference import deform_with_model, predict  # noqa: E402
+from cagekit_learn.train import load_model  # noqa: E402
+
+
+def _cli(args, capsys):
+    code = main(list(args), standalone_mode=False)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory):
+    """A model trained for a few steps on synthetic vases (through the command line)."""
+    run = tmp_path_factory.mktemp("learn") / "run"
+    code = main(["train", "synthetic:vases:6", "-o", str(run), "--points", "256",
+                 "--bottleneck", "32", "--batch-size", "2", "--max-steps", "12",
+                 "--lr", "3e-3", "--json"], standalone_mode=False)
+    assert code == 0
+    return run
+
+
+@pytest.fixture(scope="module")
+def pair(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("pair")
+    paths = []
+    for name, seed in (("source", 11), ("target", 12)):
+        V, F = synthetic.vase(seed)
+        path = folder / f"{name}.obj"
+        # the target in other units and place: results must come back in its frame
+        scale, shift = (1.0, 0.0) if name == "source" else (40.0, 7.0)
+        io.save_mesh(path, V * scale + shift, F)
+        paths.append(path)
+    return paths
+
+
+def test_train_command_writes_checkpoint_and_log(run_dir):
+    assert (run_dir / "checkpoint.pt").is_file()
+    assert len((run_dir / "log.csv").read_text().splitlines()) == 13
+
+
+def test_prediction_deforms_the_full_mesh_with_the_core_binding(run_dir, pair):
+    model, payload = load_model(run_dir)
+    src, tgt = io.load_shape(pair[0]), io.load_shape(pair[1])
+    result = deform_with_model(model, src, tgt, points=256, seed=5)
+    assert result.method == "learned"
+    assert result.vertices.shape == src[0].shape and np.isfinite(result.vertices).all()
+    # the same thing by hand: samples, one forward pass, the core's float64 MVC
+    Vs_n, cs, ss = normalize(src[0])
+    Vt_n, ct, st = normalize(tgt[0])
+    cage, deformed = predict(model, surface_samples(Vs_n, src[1], 256, seed=5),
+                             surface_samples(Vt_n, tgt[1], 256, seed=6))
+    expected = bind(Vs_n, cage, model.cage_f.numpy()).deform(deformed) * st + ct
+    assert np.allclose(result.vertices, expected, atol=1e-9)
+    assert np.allclose(result.cage_v, cage * ss + cs)
+    assert np.allclose(result.deformed_cage_v, deformed * st + ct)
+
+
+def test_refine_starts_from_the_prediction_and_improves_it(run_dir, pair):
+    model, _ = load_model(run_dir)
+    src, tgt = io.load_shape(pair[0]), io.load_shape(pair[1])
+    learned = deform_with_model(model, src, tgt, points=256)
+    refined = deform_with_model(model, src, tgt, points=256, refine=True,
+                                max_evaluations=30)
+    assert refined.method == "learned+refine"
+    assert np.allclose(refined.cage_v, learned.cage_v)
+    cd_learned = evaluate(src, tgt, (learned.vertices, src[1]))["cd"]
+    cd_refined = evaluate(src, tgt, (refined.vertices, src[1]))["cd"]
+    assert cd_refined < cd_learned
+    assert refined.energy <= refined.initial_energy
+
+
+def test_deform_model_command(run_dir, pair, tmp_path, capsys):
+    out = tmp_path / "out.obj"
+    code, stdout, _ = _cli(["deform", str(pair[0]), str(pair[1]), "--model",
+                            str(run_dir / "checkpoint.pt"), "-o", str(out), "--save-cage",
+                            str(tmp_path / "cage.obj"), "--json"], capsys)
+    assert code == 0
+    figures = json.loads(stdout)
+    assert figures["method"] == "learned" and figures["cd"] > 0
+    V, F = io.load_mesh(out)
+    assert V.shape == io.load_shape(pair[0])[0].shape
+    cage_v, cage_f = io.load_mesh(tmp_path / "cage.obj")
+    assert cage_v.shape == (42, 3)
+    code, stdout, _ = _cli(["deform", str(pair[0]), str(pair[1]), "--model", str(run_dir),
+                            "--refine", "-o", str(tmp_path / "refined.obj"), "--json"],
+                           capsys)
+    assert code == 0
+    refined = json.loads(stdout)
+    assert refined["method"] == "learned+refine" and refined["cd"] < figures["cd"]
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--model", "{bad}"], "not a readable checkpoint"),
+    (["--model", "{missing}"], "no such checkpoint"),
+    (["--refine"], "needs --model"),
+    (["--model", "{run}", "--method", "scale"], "apply to --method cage only"),
+    (["--model", "{run}", "--symmetry", "x"], "need --refine"),
+    (["--model", "{run}", "--coords", "green"], "--coords green applies"),
+    (["--model", "{hollow}"], "not a usable cagekit checkpoint"),
+])
+def test_deform_model_bad_input_exits_2_with_one_line(run_dir, pair, tmp_path, capsys,
+                                                      args, message):
+    bad = tmp_path / "bad.pt"
+    bad.write_bytes(b"\x00junk")
+    hollow = tmp_path / "hollow.pt"  # readable, but not what a model needs
+    torch.save({"format": 1, "model": {}, "model_config": {"nc": "bogus"}}, hollow)
+    names = {"bad": bad, "missing": tmp_path / "missing.pt", "run": run_dir,
+             "hollow": hollow}
+    args = [a.format(**names) for a in args]
+    code, _, err = _cli(["deform", str(pair[0]), str(pair[1]), "-o",
+                         str(tmp_path / "o.obj"), *args], capsys)
+    assert code == 2
+    assert len(err.strip().splitlines()) == 1 and message in err
+    assert not (tmp_path / "o.obj").exists()
+
+
+def test_train_command_refuses_to_overwrite_a_run_and_bad_data(run_dir, tmp_path, capsys):
+    code, _, err = _cli(["train", "synthetic:vases:4", "-o", str(run_dir)], capsys)
+    assert code == 2 and "--resume" in err and len(err.strip().splitlines()) == 1
+    code, _, err = _cli(["train", str(tmp_path / "nowhere"), "-o", str(tmp_path / "r")],
+                        capsys)
+    assert code == 2 and "nowhere" in err
+    code, _, err = _cli(["train", "synthetic:spoons:4", "-o", str(tmp_path / "r")], capsys)
+    assert code == 2 and "synthetic:FAMILY" in err
+    assert not (tmp_path / "r").exists()  # a failed run leaves no empty run folder
+
+
+def test_a_checkpoint_with_nan_weights_is_blamed_on_the_checkpoint(run_dir, pair, tmp_path,
+                                                                   capsys):
+    from cagekit_learn.checkpoint import load_checkpoint, save_checkpoint
+
+    payload = load_checkpoint(run_dir)
+    name = next(k for k, t in payload["model"].items() if t.is_floating_point())
+    payload["model"][name] = torch.full_like(payload["model"][name], float("nan"))
+    bad = tmp_path / "nan.pt"
+    save_checkpoint(bad, payload)
+    code, _, err = _cli(["deform", str(pair[0]), str(pair[1]), "-o", str(tmp_path / "o.obj"),
+                         "--model", str(bad)], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert str(bad) in err and "NaN" in err and str(pair[0]) not in err
+    assert not (tmp_path / "o.obj").exists()
+
+
+def test_cagekit_deform_without_model_never_imports_torch(pair, tmp_path):
+    code = (
+        "import sys\nfrom cagekit.cli import main\n"
+        f"main(['deform', {str(pair[0])!r}, {str(pair[1])!r}, '-o', "
+        f"{str(tmp_path / 'x.obj')!r}, '--method', 'scale'], standalone_mode=False)\n"
+        "print('torch' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, cwd=ROOT)
+    assert out.stdout.strip().splitlines()[-1] == "False"
+
+
+def test_amplify_with_a_model_on_two_workers_matches_one_worker(run_dir, tmp_path, capsys):
+    # the model travels to the workers as its path (ModelDeformer), each loads it once
+    runs = {}
+    for workers in ("1", "2"):
+        out = tmp_path / f"w{workers}"
+        code, stdout, _ = _cli(["amplify", "synthetic:vases:3", "-o", str(out),
+                                "--variations", "3", "--method", "model", "--model",
+                                str(run_dir), "--workers", workers, "--json"], capsys)
+        assert code == 0
+        assert json.loads(stdout)["items"] == 3
+        runs[workers] = json.loads((out / "manifest.json").read_text())["items"]
+    for a, b in zip(runs["1"], runs["2"]):
+        assert a["method"] == "model" and a["status"] in ("ok", "rejected")
+        assert a["cd"] == pytest.approx(b["cd"], rel=1e-9) and a["cd"] > 0
+        V1 = io.load_mesh(tmp_path / "w1" / ("variations" if a["status"] == "ok"
+                                              else "rejected") / a["output"])[0]
+        V2 = io.load_mesh(tmp_path / "w2" / ("variations" if b["status"] == "ok"
+                                              else "rejected") / b["output"])[0]
+        np.testing.assert_allclose(V1, V2, rtol=0, atol=1e-9)
+    code, _, err = _cli(["amplify", "synthetic:vases:3", "-o", str(tmp_path / "x"),
+                         "--variations", "1", "--method", "model"], capsys)
+    assert code == 2 and "--model" in err
+
+
+def test_a_model_trained_with_green_coordinates_deforms_with_them(tmp_path, pair, capsys):
+    run = tmp_path / "green"
+    code, stdout, _ = _cli(["train", "synthetic:vases:4", "-o", str(run), "--points", "128",
+                            "--bottleneck", "16", "--batch-size", "2", "--max-steps", "3",
+                            "--coords", "green", "--json"], capsys)
+    assert code == 0
+    model, _ = load_model(str(run))
+    assert model.config.coords == "green"
+    result = deform_with_model(model, io.load_shape(pair[0]), io.load_shape(pair[1]),
+                               points=128)
+    assert np.isfinite(result.vertices).all()
+    # the full mesh follows the predicted cages under Green coordinates, as the core does
+    Vs, Fs = io.load_shape(pair[0])
+    source_n = result.source_frame.to_unit(Vs)
+    cage_n = result.source_frame.to_unit(result.cage_v)
+    moved_n = result.target_frame.to_unit(result.deformed_cage_v)
+    expected = bind(source_n, cage_n, result.cage_f, method="green").deform(moved_n)
+    np.testing.assert_allclose(result.target_frame.to_unit(result.vertices), expected,
+                               atol=1e-9)
+    # --refine optimises under the model's coordinates (the options' coords are ignored)
+    refined = deform_with_model(model, io.load_shape(pair[0]), io.load_shape(pair[1]),
+                                points=128, refine=True, coords="mvc", max_evaluations=5)
+    assert refined.method == "learned+refine" and np.isfinite(refined.vertices).all()
