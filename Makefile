@@ -5,7 +5,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: package-check blender-venv test-blender blender-extension blender-render bench-blender demo test test-emulated test-slow lint architecture assets bench bench-assets bench-fit-cage bench-deform bench-learn bench-transfer bench-amplify venv clean
+.PHONY: package-check blender-venv test-blender blender-extension blender-render bench-blender demo test test-emulated test-slow lint docs architecture assets bench bench-assets bench-fit-cage bench-deform bench-learn bench-transfer bench-amplify venv clean
 
 $(STAMP): setup.cfg pyproject.toml constraints.txt constraints-common.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -68,6 +68,14 @@ test-slow: $(STAMP)
 
 lint: $(STAMP)
 	$(BIN)/ruff check cagekit cagekit_learn apps tests benchmarks data
+
+# the API reference, built from the docstrings (Sphinx, numpydoc, autosummary over cagekit and
+# cagekit_learn) with the README's library example run by sphinx-gallery: out/docs/index.html.
+# Warnings are errors; the generated sources are written afresh each time.
+docs: $(STAMP)
+	$(BIN)/pip install -q -e '.[docs]' -c constraints.txt
+	rm -rf docs/api/generated docs/api/gallery docs/api/sg_execution_times.rst
+	$(BIN)/sphinx-build -W --keep-going -b html docs/api out/docs
 
 # docs/architecture.md's module map, generated from the code (tests/test_layers.py checks it)
 architecture: $(STAMP)
@@ -146,4 +154,4 @@ bench-blender: $(BLENDER_STAMP)
 	$(BLENDER_BIN)/python benchmarks/bench_blender.py --json out/bench_blender.json
 
 clean:
-	rm -rf out .pytest_cache build *.egg-info
+	rm -rf out .pytest_cache build *.egg-info docs/api/generated docs/api/gallery docs/api/sg_execution_times.rst

@@ -28,6 +28,8 @@ import sys
 import tempfile
 import warnings
 
+from cagekit.errors import CagekitWarning
+
 __all__ = ["configure"]
 
 #: numba's threading layers in cagekit's order (numba wants all three named)
@@ -142,7 +144,6 @@ def _private_temporary_folder() -> str:
 
 def _warn(text: str) -> None:
     """One warning line, also in Python's own format (no source line is shown)."""
-    from cagekit.errors import CagekitWarning
 
     warnings.warn_explicit(CagekitWarning(text), CagekitWarning, filename=__file__,
                            lineno=0, module=__name__)

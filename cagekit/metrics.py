@@ -30,6 +30,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
+from cagekit.cage import vertex_components
 from cagekit.errors import InputError
 from cagekit.geometry import (
     as_faces,
@@ -43,8 +44,8 @@ from cagekit.geometry.frame import Frame
 from cagekit.geometry.sampling import surface_samples
 
 __all__ = ["chamfer", "chamfer_distance", "conformal_distortion", "dcotlap", "evaluate",
-           "part_nonaffinity", "planarity", "symmetry_error", "MIN_PART_VERTICES", "PLANAR_DEGREES",
-           "SYMMETRY_TOLERANCE"]
+           "nearest_residuals", "part_nonaffinity", "planarity", "symmetry_error",
+           "MIN_PART_VERTICES", "PLANAR_DEGREES", "SYMMETRY_TOLERANCE"]
 
 #: a source component with fewer vertices is too small to be a part (a screw, a label)
 MIN_PART_VERTICES = 30
@@ -55,10 +56,39 @@ PLANAR_DEGREES = 1.0
 SYMMETRY_TOLERANCE = 1e-3
 
 
+def nearest_residuals(P: np.ndarray, Q: np.ndarray,
+                      tree_Q: cKDTree | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Each point of ``P`` minus its nearest point of ``Q``: the one nearest-neighbour step
+    of every Chamfer in cagekit (:func:`chamfer_distance`, and the energy's
+    :func:`cagekit.deformation.terms.chamfer_loss` with its gradient).
+
+    Parameters
+    ----------
+    P : (n, 3) float64
+    Q : (m, 3) float64
+    tree_Q : scipy.spatial.cKDTree, optional
+        A tree built on ``Q``, reused across calls.
+
+    Returns
+    -------
+    residuals : (n, 3) float64
+        ``P - Q[index]``.
+    index : (n,) int64
+        The nearest point of ``Q`` to each point of ``P`` (``scipy.spatial.cKDTree``).
+
+    Examples
+    --------
+    >>> residuals, index = nearest_residuals(np.array([[0.0, 0, 1]]), np.zeros((2, 3)))
+    >>> residuals.tolist(), index.tolist()
+    ([[0.0, 0.0, 1.0]], [0])
+    """
+    _, index = (cKDTree(Q) if tree_Q is None else tree_Q).query(P)
+    return P - Q[index], index
+
+
 def _nearest_sq(P: np.ndarray, Q: np.ndarray) -> np.ndarray:
     """Squared distance from each point of P to its nearest point of Q, shape (len(P),)."""
-    _, idx = cKDTree(Q).query(P)
-    diff = P - Q[idx]
+    diff, _ = nearest_residuals(P, Q)
     return np.einsum("ij,ij->i", diff, diff)
 
 
@@ -319,7 +349,6 @@ def part_nonaffinity(V_src: ArrayLike, F_src: ArrayLike, V_out: ArrayLike,
     >>> part_nonaffinity(V, F, V @ A + 1)["worst"] < 1e-12
     True
     """
-    from cagekit.cage import vertex_components
 
     Vs, Vo, F = _paired(V_src, F_src, V_out)
     labels = vertex_components(len(Vs), F)

@@ -19,6 +19,7 @@ from pathlib import Path
 import torch
 
 from cagekit.errors import InputError
+from cagekit.io.files import atomic_output
 
 __all__ = ["FORMAT", "CHECKPOINT_NAME", "save_checkpoint", "load_checkpoint", "resolve",
            "nonfinite_tensors"]
@@ -42,7 +43,6 @@ def save_checkpoint(path, payload: dict) -> None:
     payload : dict
         Tensors and plain Python values only.
     """
-    from cagekit.io.files import atomic_output
 
     with atomic_output(path) as tmp, open(tmp, "wb") as handle:
         torch.save({"format": FORMAT, **payload}, handle)

@@ -29,7 +29,7 @@ import torch
 from torch.utils.checkpoint import checkpoint
 
 from cagekit.cage import cage_topology, check_cage
-from cagekit.coords.mvc import FAR_BLEND
+from cagekit.coords.mvc import FAR_BLEND, closest_point_weights
 from cagekit.errors import InputError
 
 __all__ = ["mean_value_coordinates", "CageBinding", "bind", "deform", "DEFAULT_SNAP",
@@ -252,7 +252,6 @@ def _snap_rows(x, V, nrm, h, sd, cst: _Consts):
 
 def _closest_rows(x, V, faces_np):
     """Barycentric weights of the closest cage point (the core's fallback), as constants."""
-    from cagekit.coords.mvc import closest_point_weights
 
     xs = x.detach().to("cpu", torch.float64).numpy()
     vs = V.detach().to("cpu", torch.float64).numpy()

@@ -21,6 +21,7 @@ import numpy as np
 import torch
 
 from cagekit.cage import cage_topology
+from cagekit.coords import green as core
 from cagekit.errors import InputError
 
 __all__ = ["green_coordinates", "green_deform", "stretch_factors"]
@@ -127,7 +128,6 @@ def green_coordinates(points, cage_v, cage_f, chunk_size: int = 1024):
     >>> round(float(phi.sum()), 12)
     1.0
     """
-    from cagekit.coords import green as core
 
     X, V = _as_tensor(points, "points"), _as_tensor(cage_v, "cage vertices")
     if V.dtype != X.dtype or V.device != X.device:

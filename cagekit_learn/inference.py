@@ -32,6 +32,7 @@ from cagekit.geometry import as_shape
 from cagekit.geometry.frame import Frame
 from cagekit.geometry.sampling import surface_samples
 from cagekit_learn.networks import NeuralCages
+from cagekit_learn.train import load_model
 
 __all__ = ["ModelDeformer", "predict", "predict_fixed_source", "predict_cages",
            "deform_with_model"]
@@ -262,7 +263,6 @@ class ModelDeformer:
 
     def __call__(self, source, target, seed: int = 0) -> DeformResult:
         if self._model is None:
-            from cagekit_learn.train import load_model
 
             model, payload = load_model(self.path)
             self._model = (model, int(payload.get("config", {}).get("points", 1024)))

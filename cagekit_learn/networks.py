@@ -22,6 +22,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from cagekit.cage.fitting import template_cage
 from cagekit_learn.alignment import box_scale
 
 __all__ = ["ModelConfig", "PointNetEncoder", "VertexDecoder", "NeuralCages", "NC_VARIANTS"]
@@ -178,7 +179,6 @@ class NeuralCages(nn.Module):
 
     def __init__(self, config: ModelConfig | None = None):
         super().__init__()
-        from cagekit.cage.fitting import template_cage
 
         self.config = config = config or ModelConfig()
         if config.nc not in NC_VARIANTS:

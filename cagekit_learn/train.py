@@ -38,9 +38,13 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from cagekit.deformation.terms import ALPHA_MVC, ALPHA_SHAPE
+from cagekit import io
+from cagekit.cage import check_cage
+from cagekit.datasets.synthetic import FAMILIES
+from cagekit.deformation.terms import ALPHA_MVC, ALPHA_SHAPE, mirror_partners
 from cagekit.errors import CagekitWarning, InputError
 from cagekit.geometry import as_count
+from cagekit.geometry.frame import normalize
 from cagekit.progress import progress_bar, progress_enabled
 from cagekit_learn import losses
 from cagekit_learn.checkpoint import (
@@ -59,6 +63,7 @@ from cagekit_learn.data import (
     make_batch,
     shard,
 )
+from cagekit_learn.green import green_coordinates, green_deform
 from cagekit_learn.networks import ModelConfig, NeuralCages
 
 __all__ = ["TrainConfig", "TrainResult", "Trainer", "train", "training_loss", "load_collection",
@@ -177,7 +182,6 @@ def load_collection(data: str, points: int, seed: int, progress: bool = False,
             count = int(parts[2]) if len(parts) > 2 else 64
         except ValueError:
             raise InputError(f"expected synthetic:FAMILY[:N], got {data!r}") from None
-        from cagekit.datasets.synthetic import FAMILIES
 
         if family not in FAMILIES or count < 2:
             raise InputError(f"expected synthetic:FAMILY[:N] with FAMILY one of "
@@ -222,9 +226,6 @@ def load_source_cage(cage_path, template=None) -> tuple[list, list]:
     """
     import numpy as np
 
-    from cagekit import io
-    from cagekit.cage import check_cage
-    from cagekit.geometry.frame import normalize
 
     cage_v, cage_f = io.load_mesh(cage_path)
     if template is not None:
@@ -375,7 +376,6 @@ def _require_finite_cages(out: dict) -> None:
 
 def _green_deformed(source, source_cage, deformed_cage, cage_f):
     """Each batch item's source deformed by its cages under Green coordinates, (B, P, 3)."""
-    from cagekit_learn.green import green_coordinates, green_deform
 
     faces = cage_f.cpu().numpy()
     out = []
@@ -416,7 +416,6 @@ def _fixed_source_cache(net, source, knn):
 
 
 def _template_partners(net, axis):
-    from cagekit.deformation.terms import mirror_partners
 
     key = f"_partners_{axis}"
     if not hasattr(net, key):
@@ -742,8 +741,6 @@ def fixed_source_matches(path, model: dict) -> bool:
     InputError
         An unreadable or degenerate file (naming it).
     """
-    from cagekit import io
-    from cagekit.geometry.frame import normalize
 
     if model.get("fixed_source_points") is None:
         return False

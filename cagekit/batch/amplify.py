@@ -35,9 +35,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from cagekit.batch.collection import SYNTHETIC_PREFIX, Shape, file_hash, find_shapes, load_shape_of
+from cagekit.cage.fitting import fit_cage
+from cagekit.deformation import deform
 from cagekit.errors import CagekitWarning, InputError
+from cagekit.geometry.frame import Frame
 from cagekit.interrupts import sigint_deferred
+from cagekit.io import load_mesh, save_mesh
 from cagekit.io.files import atomic_output, one_line, read_text
+from cagekit.metrics import evaluate
 
 __all__ = ["COLUMNS", "COORDS", "MAX_CD", "MAX_NONAFFINITY", "METHODS", "SHEET_COLUMNS", "Item",
            "amplify", "contact_sheet", "deform_item", "plan_pairs", "prepare_worker",
@@ -312,8 +317,6 @@ def _portable(warning) -> tuple:
 
 def _deform_and_score(source, target, method, seed, cage, deformer, out, coords):
     """The item's work (see :func:`deform_item`); the fitted cage and its time in ``out``."""
-    from cagekit.deformation import deform
-    from cagekit.metrics import evaluate
 
     Vs, Fs = _loaded("source", source)
     Vt, Ft = _loaded("target", target)
@@ -345,8 +348,6 @@ def _loaded(role, location):
 
 def _fit(Vs, Fs, seed):
     """The cage :func:`cagekit.deform` would fit, in the source's own frame."""
-    from cagekit.cage.fitting import fit_cage
-    from cagekit.geometry.frame import Frame
 
     frame = Frame.of(Vs, name="the source")
     cage_n, cage_f = fit_cage(frame.to_unit(Vs), Fs, faces=CAGE_FACES, seed=seed,
@@ -446,7 +447,6 @@ class _Cages:
     def load(self, shape):
         """The cage of ``shape``, ``(cage_v (k, 3) float64, cage_f (c, 3) int64)``, or
         None when it has none to reuse."""
-        from cagekit.io import load_mesh
 
         entry = self.manifest.cages.get(shape.name)  # kept only for this very source
         if entry is None:
@@ -458,7 +458,6 @@ class _Cages:
     def save(self, shape, cage) -> None:
         """Write the cage fitted to ``shape`` (atomically) and record it; the manifest is
         saved by the caller."""
-        from cagekit.io import save_mesh
 
         file = self.files[shape.name]
         save_mesh(self._path(file), *cage)
@@ -936,7 +935,6 @@ class _Runner:
                 self._cage_of(item.source), self.deformer, self.coords)
 
     def _record(self, item, result):
-        from cagekit.io import save_mesh
 
         row = {"source": item.source.name, "target": item.target.name,
                "output": item.output, "method": self.method, "coords": self.coords,
@@ -989,7 +987,6 @@ def contact_sheet(rows, items, folder, path, limit: int = 24) -> str:
     str
         ``path``.
     """
-    from cagekit.io import load_mesh
     from cagekit.render import render_grid
 
     shown, captions = [], []

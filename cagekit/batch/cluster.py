@@ -10,6 +10,7 @@ pool. Imported only when a cluster is asked for; the ``cluster`` extra installs 
 
 from __future__ import annotations
 
+from cagekit.batch.amplify import worker_count
 from cagekit.errors import InputError
 
 __all__ = ["close", "connect"]
@@ -53,7 +54,6 @@ def connect(address: str, workers: int | None = None, setup=None):
     if address == "local":
         import dask
 
-        from cagekit.batch.amplify import worker_count
 
         # Dask's nannies set MALLOC_TRIM_THRESHOLD_=65536 in their workers (and in this
         # process): glibc then hands freed memory back at once and faults it in again,

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cagekit.datasets.synthetic import FAMILIES
 from cagekit.errors import InputError
 from cagekit.io import SUPPORTED_MESH_EXTENSIONS, load_mesh
 
@@ -78,7 +79,6 @@ def file_hash(path: str | os.PathLike) -> str:
 
 
 def _synthetic(spec: str) -> list[Shape]:
-    from cagekit.datasets.synthetic import FAMILIES
 
     parts = spec.split(":")
     if len(parts) != 3 or parts[1] not in FAMILIES or not parts[2].isdigit() \
@@ -169,7 +169,6 @@ def load_shape_of(location: str) -> tuple[np.ndarray, np.ndarray]:
     (3, dtype('int64'))
     """
     if location.startswith(SYNTHETIC_PREFIX):
-        from cagekit.datasets.synthetic import FAMILIES
 
         family, seed = location[len(SYNTHETIC_PREFIX):].split(":")
         return FAMILIES[family](seed=int(seed))

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from cagekit.cage import self_intersecting_faces
+
 __all__ = ["SelfContact", "minimise_with_contact", "DHAT", "STIFFNESS"]
 
 #: distance below which two elements of a cage repel, in cage diagonals
@@ -125,7 +127,6 @@ class SelfContact:
     def crosses(self, cage_v) -> bool:
         """Whether two faces intersect (exact predicates,
         :func:`cagekit.cage.self_intersecting_faces`): the check behind every step."""
-        from cagekit.cage import self_intersecting_faces
 
         return bool(self_intersecting_faces(cage_v, self.faces).any())
 

@@ -23,9 +23,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from cagekit.cage import self_intersecting_faces
-from cagekit.errors import CageFitError, InputError
-from cagekit.geometry import as_shape
+from cagekit.cage import check_cage, face_components, self_intersecting_faces, signed_volume
+from cagekit.cage.shapes import icosphere_cage
+from cagekit.errors import CageError, CageFitError, InputError
+from cagekit.geometry import as_shape, face_areas
+from cagekit.geometry.frame import Frame
+from cagekit.geometry.sampling import sample_surface
 
 __all__ = ["fit_cage", "cage_report", "template_cage", "wrap_input", "check_face_budget",
            "CageFitError", "METHODS", "MIN_FACES", "MAX_FACES"]
@@ -87,7 +90,6 @@ def template_cage():
     >>> v.shape, f.shape
     ((42, 3), (80, 3))
     """
-    from cagekit.cage.shapes import icosphere_cage
 
     return icosphere_cage(subdivisions=1, radius=1.0)
 
@@ -106,7 +108,6 @@ def _as_shape(shape_v, shape_f):
 
 def _frame(v):
     """The fitting frame: bounding-box centre, the diagonal as unit."""
-    from cagekit.geometry.frame import Frame
 
     try:
         return Frame.of(v, unit="diagonal")
@@ -120,8 +121,6 @@ def _samples(v, f, n, seed):
     """Vertices plus ``n`` area-uniform samples (mesh) or the points themselves (cloud)."""
     if len(f) == 0:
         return v
-    from cagekit.geometry import face_areas
-    from cagekit.geometry.sampling import sample_surface
 
     if not face_areas(v, f).sum() > 0:
         return v
@@ -473,7 +472,6 @@ def _fit_template(v, samples, margin):
 
 
 def _n_components(f):
-    from cagekit.cage import face_components
 
     return len(np.unique(face_components(int(f.max()) + 1, f))) if len(f) else 0
 
@@ -525,8 +523,6 @@ def _checks(cv, cf, v, f, samples, faces, components, cut_checked=False):
     """
     import igl
 
-    from cagekit.cage import check_cage, signed_volume
-    from cagekit.errors import CageError
 
     out = {}
     try:
@@ -625,7 +621,6 @@ def _report(checks, vn, f, cvn, cf, seed):
     import igl
     from scipy.spatial import cKDTree
 
-    from cagekit.cage import signed_volume
 
     shape_vol, reference = _shape_volume(vn, f)
     cage_vol = signed_volume(cvn, cf)

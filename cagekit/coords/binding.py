@@ -8,6 +8,8 @@ import numba
 import numpy as np
 
 from cagekit.cage import cage_encloses, check_cage, distance_in_diagonals, winding_numbers
+from cagekit.coords.green import FaceTerms, green_coordinates
+from cagekit.coords.mvc import FAR_BLEND, mean_value_coordinates
 from cagekit.errors import InputError, OutsideCageWarning
 
 __all__ = ["CageBinding", "GreenBinding", "bind", "warn_outside", "METHODS"]
@@ -113,7 +115,6 @@ class GreenBinding:
 
     def __init__(self, phi: np.ndarray, psi: np.ndarray, cage_v: np.ndarray,
                  cage_f: np.ndarray):
-        from cagekit.coords.green import FaceTerms
 
         self.phi, self.psi = phi, psi
         self.cage_v, self.cage_f = cage_v, cage_f
@@ -221,14 +222,12 @@ def bind(points, cage_v, cage_f, method: str = "mvc", *,
     >>> b.weights.shape, round(float(b.weights.sum()), 12)
     ((1, 8), 1.0)
     """
-    from cagekit.coords.mvc import mean_value_coordinates
 
     if method not in METHODS:
         raise InputError(f"unknown coordinates {method!r}; available: {', '.join(METHODS)}")
     v = np.ascontiguousarray(cage_v, dtype=np.float64)
     faces = check_cage(v, cage_f, intersections=check)
     if method == "green":
-        from cagekit.coords.green import green_coordinates
 
         return GreenBinding(*green_coordinates(points, v, faces), v, faces)
     weights = mean_value_coordinates(points, v, faces, check=False)
@@ -270,7 +269,6 @@ def warn_outside(points, cage_v, cage_f, *, shape: str = "the shape",
     >>> share, str(caught[0].message)
     (0.5, '50% of the shape (1 of 2 points) lies outside the cage: extrapolated')
     """
-    from cagekit.coords.mvc import FAR_BLEND
 
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     outside = winding_numbers(points, cage_v, cage_f) < 0.5 - 1e-9

@@ -54,9 +54,11 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from cagekit.cage import cage_topology
 from cagekit.coords.fastangle import angle_from_sin_cos
 from cagekit.coords.fastlog import log_ratio
 from cagekit.coords.lanes import load_lanes
+from cagekit.errors import InputError
 from cagekit.geometry.frame import bounding_box_diagonal
 
 __all__ = ["green_coordinates", "evaluation_plan", "EvaluationPlan", "FaceTerms", "stretch_factors",
@@ -278,7 +280,6 @@ def _face_constants(cv, faces, normals, twice):
     """What does not depend on the point: the faces' offsets along their normals, their
     edges' outward in-plane normals and offsets along them, the hat functions' in-plane
     gradients ``n x (v_c - v_b) / 2A``, and the unique edges' lengths."""
-    from cagekit.cage import cage_topology
 
     topo = cage_topology(faces)
     corners = cv[faces]  # (m, 3, 3)
@@ -429,7 +430,6 @@ def evaluation_plan(points, cage_v, cage_f) -> EvaluationPlan:
 
 def _coordinates_and_plan(points, cage_v, cage_f):
     """:func:`green_coordinates` and its :class:`EvaluationPlan`."""
-    from cagekit.errors import InputError
 
     pts = np.asarray(points, dtype=np.float64)
     if pts.ndim != 2 or pts.shape[1] != 3:

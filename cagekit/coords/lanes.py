@@ -1,4 +1,4 @@
-"""Blocks of points for the vectorised coordinate kernels (:mod:`.mvc`, :mod:`.green`).
+"""Blocks of points for the vectorised coordinate kernels (:mod:`.mvc`, :mod:`~.coords.green`).
 
 Both kernels evaluate a block of points at a time, one point per lane, so that LLVM
 vectorises their loops over the lanes; this loads a block.

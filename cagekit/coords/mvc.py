@@ -26,9 +26,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from cagekit.cage import cage_topology, distance_in_diagonals
+from cagekit.cage import cage_topology, check_cage, distance_in_diagonals
 from cagekit.coords.fastangle import half_angle_over_sin
 from cagekit.coords.lanes import load_lanes
+from cagekit.errors import InputError
 from cagekit.geometry.frame import bounding_box_diagonal
 
 __all__ = ["mean_value_coordinates", "affine_extension_weights", "affine_extension_matrix",
@@ -364,8 +365,6 @@ def mean_value_coordinates(points, cage_v, cage_f, snap: float = DEFAULT_SNAP,
     >>> bool(np.allclose(w.sum(axis=1), 1.0)), bool(np.allclose(w @ v, [[0.1, 0.2, -0.3]]))
     (True, True)
     """
-    from cagekit.cage import check_cage
-    from cagekit.errors import InputError
 
     cage_v = np.asarray(cage_v, dtype=np.float64)
     faces = check_cage(cage_v, cage_f) if check else np.asarray(cage_f, dtype=np.int64)
@@ -404,7 +403,6 @@ _FAR_CHUNK = 4096
 
 def _blend_far_rows(px, cv, faces, out):
     """Rows of points beyond ``FAR_BLEND[0]`` diagonals: blend into the affine extension."""
-    from cagekit.errors import InputError
 
     r = distance_in_diagonals(px, cv)  # px and cv are both centred on the cage's box
     far = np.flatnonzero(~(r <= FAR_BLEND[0]))

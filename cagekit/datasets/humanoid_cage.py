@@ -22,6 +22,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from cagekit.cage import check_cage
+from cagekit.datasets.humanoid import JOINTS
+
 __all__ = ["humanoid_cage", "MARGIN"]
 
 #: clearance of the cage around the body, as a share of its height
@@ -91,8 +94,6 @@ def humanoid_cage(rig, margin: float = MARGIN) -> tuple[np.ndarray, np.ndarray]:
     F : (m, 3) int64
         Closed, 2-manifold, outward, free of self-intersection.
     """
-    from cagekit.cage import check_cage
-    from cagekit.datasets.humanoid import JOINTS
 
     V = rig.vertices
     height = float(np.ptp(V[:, 1]))

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cagekit.cage import check_cage
+from cagekit.cage.fitting import fit_cage
 from cagekit.coords.binding import warn_outside
 from cagekit.deformation.problem import (
     LANDMARK_MARGIN,
@@ -272,7 +273,6 @@ def deform(source, target, cage=None, *, method: str = "cage", symmetry: str | N
     else:
         lm = _landmarks_in_frames(landmarks, fs, ft)
         if cage is None:
-            from cagekit.cage.fitting import fit_cage
 
             cage_n, cage_f = fit_cage(Vs_n, Fs, faces=faces, seed=seed, samples=5000)
         else:

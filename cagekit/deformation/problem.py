@@ -33,13 +33,16 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from cagekit.cage import vertex_components
 from cagekit.coords import bind
+from cagekit.coords.green import FaceTerms
 from cagekit.deformation import terms as losses
 from cagekit.deformation.solver import minimise
 from cagekit.errors import InputError
-from cagekit.geometry import cotangent_laplacian, vertex_neighborhoods
+from cagekit.geometry import cotangent_laplacian, surface_laplacian, vertex_neighborhoods
 from cagekit.geometry.alignment import box_scale, partial_box_scale
 from cagekit.geometry.sampling import subset, surface_samples
+from cagekit.metrics import MIN_PART_VERTICES
 
 __all__ = ["CageEnergy", "CageProblem", "CageSolution", "DEFAULT_WEIGHTS", "box_factors",
            "check_choices", "check_counts", "solve", "term_weights"]
@@ -259,8 +262,6 @@ def box_factors(Vs_n, Vt_n, target_kind) -> np.ndarray:
 def _part_term(Vs_n, Fs, W_vertices):
     """The part-affinity quadratic form of the source's parts (face components of at least
     ``MIN_PART_VERTICES`` vertices), or None when it has fewer than two."""
-    from cagekit.cage import vertex_components
-    from cagekit.metrics import MIN_PART_VERTICES
 
     if not len(Fs):
         return None
@@ -273,7 +274,6 @@ def _part_term(Vs_n, Fs, W_vertices):
 def _detail_term(Vs_n, Fs, W_vertices):
     """The detail term's quadratic form, or None for a point cloud or a mesh whose
     cotangent Laplacian is undefined (no faces of positive area, non-finite weights)."""
-    from cagekit.geometry import surface_laplacian
 
     if not len(Fs):
         return None
@@ -354,7 +354,6 @@ class CageProblem:
         binding = bind(np.concatenate(parts), *cage, method=coords, check=False)
         face_terms = None
         if coords == "green":
-            from cagekit.coords.green import FaceTerms
 
             W = np.hstack([binding.phi, binding.psi])
             face_terms = FaceTerms(binding.cage_v, binding.cage_f)

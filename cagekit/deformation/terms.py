@@ -25,6 +25,7 @@ import scipy.sparse
 from scipy.spatial import cKDTree
 
 from cagekit.errors import InputError
+from cagekit.metrics import nearest_residuals
 
 __all__ = [
     "ALPHA_MVC",
@@ -89,11 +90,8 @@ def _chamfer_pair(P, Q, tree_Q=None, weight_pq=1.0):
     direction weighted by ``weight_pq``)."""
     _check_points(P, "the moving point set")
     _check_points(Q, "the fixed point set")
-    tree_Q = cKDTree(Q) if tree_Q is None else tree_Q
-    _, to_q = tree_Q.query(P)
-    _, to_p = cKDTree(P).query(Q)
-    e_pq = P - Q[to_q]  # (s, 3): each P point minus its nearest Q point
-    e_qp = Q - P[to_p]  # (t, 3)
+    e_pq, to_q = nearest_residuals(P, Q, tree_Q)  # (s, 3): each P point minus its nearest Q
+    e_qp, to_p = nearest_residuals(Q, P)  # (t, 3)
     s, t = len(P), len(Q)
     value = (weight_pq * np.einsum("ij,ij->", e_pq, e_pq) / s
              + np.einsum("ij,ij->", e_qp, e_qp) / t)

@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from cagekit.errors import InputError
+from cagekit.geometry import as_vertices
 
 __all__ = ["Frame", "MIN_EXTENT", "bounding_box", "bounding_box_diagonal", "normalize",
            "denormalize"]
@@ -27,7 +28,6 @@ UNITS = ("half_extent", "diagonal")
 
 
 def _vertices(V) -> np.ndarray:
-    from cagekit.geometry import as_vertices
 
     return as_vertices(V)
 

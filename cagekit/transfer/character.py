@@ -34,6 +34,7 @@ from cagekit.datasets.humanoid import RIGID_PARTS, landmark_part
 from cagekit.deformation import deform
 from cagekit.errors import InputError
 from cagekit.geometry import as_vertices, cotangent_laplacian
+from cagekit.geometry.alignment import box_alignment, similarity_alignment
 from cagekit.io.landmarks import LandmarkMatch, match_landmarks
 from cagekit.transfer.character_cage import CharacterCageFit, fit_character_cage
 from cagekit.transfer.loose_pieces import LoosePieces, find_loose_pieces
@@ -184,7 +185,6 @@ def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
         character (:func:`cagekit.transfer.surface_binding.check_coupling`; the message says what
         failed).
     """
-    from cagekit.geometry.alignment import box_alignment, similarity_alignment
 
     match = match_landmarks(template_landmarks, character_landmarks,
                             source_name=template_name, target_name=character_name)

@@ -38,8 +38,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from cagekit.cage import unique_edges
+from cagekit.coords import bind
 from cagekit.errors import CageFitError, CagekitWarning, InputError
 from cagekit.geometry import as_vertices, uniform_laplacian, vertex_rotations
+from cagekit.transfer.robust_arap import robust_arap
 
 __all__ = ["SurfaceBinding", "bind_surface", "negative_mass", "coupled_share",
            "check_coupling", "FREE_MASS", "CONFIDENCE_SCALE", "DATA_WEIGHT", "WARN_COUPLED",
@@ -150,7 +152,6 @@ class SurfaceBinding:
         -------
         (n, 3) float64
         """
-        from cagekit.transfer.robust_arap import robust_arap
 
         C = np.asarray(cage_v, dtype=np.float64)
         out = self.weights @ C
@@ -202,7 +203,6 @@ def bind_surface(vertices, faces, cage_v, cage_f, *, weights=None,
     >>> bool(b.mended.any()), bool(np.allclose(b.deform(2 * v), 2 * points))
     (False, True)
     """
-    from cagekit.coords import bind
 
     V = as_vertices(vertices, "vertices")
     C = as_vertices(cage_v, "cage_v")
