@@ -41,27 +41,33 @@ def _is_module(dotted: str) -> bool:
     return path.with_suffix(".py").is_file() or (path / "__init__.py").is_file()
 
 
-def imported_modules(name, path, tree) -> list[str]:
-    """The project modules a module imports (a name imported from a package counts as the
-    package, unless it is one of its submodules)."""
+def imports(name, path, tree=None):
+    """(line, imported module, imported names) of every import statement of module ``name``
+    in ``path`` (relative imports resolved; ``tree``: its ``ast``, when parsed already)."""
     package = name if path.name == "__init__.py" else name.rpartition(".")[0]
-    found = set()
-    for node in ast.walk(tree):
+    for node in ast.walk(ast.parse(path.read_text()) if tree is None else tree):
         if isinstance(node, ast.Import):
-            found.update(alias.name for alias in node.names)
+            for alias in node.names:
+                yield node.lineno, alias.name, []
         elif isinstance(node, ast.ImportFrom):
             if node.level:
                 base = package.split(".")[: len(package.split(".")) - node.level + 1]
                 module = ".".join(base + ([node.module] if node.module else []))
             else:
                 module = node.module
-            submodules = [f"{module}.{a.name}" for a in node.names
-                          if _is_module(f"{module}.{a.name}")]
-            found.update(submodules)
-            if len(submodules) < len(node.names):
-                found.add(module)
-    own = {m for m in found if m.split(".")[0] in PACKAGES and m != name}
-    return sorted(own)
+            yield node.lineno, module, [alias.name for alias in node.names]
+
+
+def imported_modules(name, path, tree) -> list[str]:
+    """The project modules a module imports (a name imported from a package counts as the
+    package, unless it is one of its submodules)."""
+    found = set()
+    for _, module, names in imports(name, path, tree):
+        submodules = [f"{module}.{n}" for n in names if _is_module(f"{module}.{n}")]
+        found.update(submodules)
+        if len(submodules) < len(names) or not names:
+            found.add(module)
+    return sorted(m for m in found if m.split(".")[0] in PACKAGES and m != name)
 
 
 def short(module: str) -> str:

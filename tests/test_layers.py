@@ -9,9 +9,9 @@ applications may use the command line's shared rules, :mod:`cagekit.cli.common`,
 imports only the core.
 """
 
-import ast
-
 import pytest
+from architecture import imports
+from architecture import module_files as modules
 from builders import REPOSITORY as ROOT
 
 LAYERS = {"core": 0, "learn": 1, "cli": 2, "apps": 3}
@@ -26,30 +26,6 @@ def layer(module: str) -> str | None:
         if module == prefix or module.startswith(prefix + "."):
             return name
     return None
-
-
-def modules():
-    for package in ("cagekit", "cagekit_learn", "apps"):
-        for path in sorted((ROOT / package).rglob("*.py")):
-            parts = path.relative_to(ROOT).with_suffix("").parts
-            name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
-            yield name, path
-
-
-def imports(name, path):
-    """(line, imported module, imported names) of every import statement in a file."""
-    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
-    for node in ast.walk(ast.parse(path.read_text())):
-        if isinstance(node, ast.Import):
-            for alias in node.names:
-                yield node.lineno, alias.name, []
-        elif isinstance(node, ast.ImportFrom):
-            if node.level:
-                base = package.split(".")[: len(package.split(".")) - node.level + 1]
-                module = ".".join(base + ([node.module] if node.module else []))
-            else:
-                module = node.module
-            yield node.lineno, module, [alias.name for alias in node.names]
 
 
 def violations(files=None):
