@@ -64,16 +64,15 @@ def _worker() -> None:
             try:
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")
-                    cv, cf, report = cagekit.fit_cage(V, F, faces=job["faces"],
-                                                      return_report=True)
+                    cv, cf, report = cagekit.fit_cage(V, F, faces=job["faces"])
                     fit_s = time.perf_counter() - t1
                     again = cagekit.cage_report(V, F, cv, cf, faces=job["faces"], seed=1)
-                ok = report["ok"] and again["ok"]
+                ok = report.ok and again.ok
                 row.update(status="fitted" if ok else "unguaranteed", fit_s=fit_s,
-                           cage_faces=len(cf), volume_ratio=report["volume_ratio"],
-                           volume_reference=report["volume_reference"],
-                           max_distance=report["max_distance"],
-                           failed_checks=[k for k, v in again["checks"].items() if not v])
+                           cage_faces=len(cf), volume_ratio=report.volume_ratio,
+                           volume_reference=report.volume_reference,
+                           max_distance=report.max_distance,
+                           failed_checks=[k for k, v in again.checks.items() if not v])
                 if job.get("cage"):
                     io.save_mesh(job["cage"], cv, cf)
             except InputError as exc:

@@ -282,7 +282,7 @@ def main(argv=None):
         V, F = bumpy_shape(size)
         diagonal = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
         t = time.perf_counter()
-        cage_v, cage_f = cagekit.fit_cage(V, F, faces=200, seed=0)
+        cage_v, cage_f, _ = cagekit.fit_cage(V, F, faces=200, seed=0)
         print(f"\n# {len(V):,} vertices, {len(F):,} faces; cage {len(cage_v)} vertices, "
               f"{len(cage_f)} faces (fit_cage {time.perf_counter() - t:.1f} s)")
         print(f"{'vertices':>9} {'method':<17}{'bind s':>9}{'update ms':>10}{'gain':>7}"

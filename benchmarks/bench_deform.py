@@ -212,20 +212,22 @@ def run(source, target, method, symmetry):
             kwargs["weights"] = {"parts": 0.0, "detail": 0.0}
         method = "cage"
     try:
-        result = cagekit.deform(source, target, method=method, **kwargs)
+        result = cagekit.deform(*source, *target,
+                                options=cagekit.DeformOptions(method=method, **kwargs))
     except InputError as exc:  # nricp_amberg's system can be singular on real meshes
         print(f"  {method} failed: {exc}", file=sys.stderr)
         return dict.fromkeys(("cd", "dcotlap", "seconds", "part_median", "part_worst",
                               "planar_p95", "seconds_cage_given"), float("nan")), None
     seconds = time.perf_counter() - t0
-    figures = cagekit.evaluate(source, target, (result.vertices, source[1]))
-    row = {"cd": figures["cd_x1e2"], "dcotlap": figures["dcotlap_x1e3"], "seconds": seconds,
-           "part_median": 100 * figures["part_nonaffinity_median"],
-           "part_worst": 100 * figures["part_nonaffinity_worst"],
-           "planar_p95": figures["planarity_p95_deg"]}
+    figures = cagekit.evaluate(*source, *target, result.vertices)
+    row = {"cd": figures.cd_x1e2, "dcotlap": figures.dcotlap_x1e3, "seconds": seconds,
+           "part_median": 100 * figures.part_nonaffinity_median,
+           "part_worst": 100 * figures.part_nonaffinity_worst,
+           "planar_p95": figures.planarity_p95_deg}
     if method == "cage" and kwargs["reference"] == "aligned" and "weights" not in kwargs:
         t0 = time.perf_counter()
-        cagekit.deform(source, target, cage=(result.cage_v, result.cage_f), **kwargs)
+        cagekit.deform(*source, *target, result.cage_v, result.cage_f,
+                       options=cagekit.DeformOptions(**kwargs))
         row["seconds_cage_given"] = time.perf_counter() - t0
     return row, result
 
@@ -244,12 +246,13 @@ def speed_check():
     """cage on a ~10,000-vertex chair with a 200-face cage: fitted in the call, and given."""
     V, F = synthetic.chair(seed=0, resolution=1.5)
     target = synthetic.chair(seed=1)
-    cagekit.deform((V, F), target, max_evaluations=2)  # load numba's cache once
+    cagekit.deform(V, F, *target,
+                   options=cagekit.DeformOptions(max_evaluations=2))  # load numba's cache once
     t0 = time.perf_counter()
-    result = cagekit.deform((V, F), target)
+    result = cagekit.deform(V, F, *target)
     fitted = time.perf_counter() - t0
     t0 = time.perf_counter()
-    cagekit.deform((V, F), target, cage=(result.cage_v, result.cage_f))
+    cagekit.deform(V, F, *target, result.cage_v, result.cage_f)
     given = time.perf_counter() - t0
     return {"vertices": len(V), "cage_faces": len(result.cage_f), "seconds_fit_included":
             fitted, "seconds_cage_given": given}
@@ -269,14 +272,15 @@ def real_speed_check(low: int = 8000, high: int = 12500, calls: int = 3) -> list
             if not low <= len(source[0]) <= high:
                 continue
             target_model, target = meshes[(i + 1) % len(meshes)]
-            cagekit.deform(source, target, max_evaluations=2)  # caches, first-call costs
+            # caches, first-call costs
+            cagekit.deform(*source, *target, options=cagekit.DeformOptions(max_evaluations=2))
             fit, total = [], []
             for _ in range(calls):
                 t0 = time.perf_counter()
-                cagekit.fit_cage(*source, samples=5000)  # as deform fits it
+                cagekit.fit_cage(*source, samples=5000, report=False)  # as deform fits it
                 fit.append(time.perf_counter() - t0)
                 t0 = time.perf_counter()
-                cagekit.deform(source, target)
+                cagekit.deform(*source, *target)
                 total.append(time.perf_counter() - t0)
             row = {"pair": f"{kind}: {model.name} -> {target_model.name}",
                    "source_vertices": len(source[0]), "seconds_fit": float(np.median(fit)),
@@ -290,9 +294,9 @@ def real_speed_check(low: int = 8000, high: int = 12500, calls: int = 3) -> list
 def picture(path, source, target, name, symmetry):
     from cagekit.render import render_meshes
 
-    result = cagekit.deform(source, target, symmetry=symmetry)
-    scale = cagekit.deform(source, target, method="scale")
-    nricp = cagekit.deform(source, target, method="nricp")
+    result = cagekit.deform(*source, *target, options=cagekit.DeformOptions(symmetry=symmetry))
+    scale = cagekit.deform(*source, *target, options=cagekit.DeformOptions(method="scale"))
+    nricp = cagekit.deform(*source, *target, options=cagekit.DeformOptions(method="nricp"))
     panels = [source, target, (scale.vertices, source[1]), (nricp.vertices, source[1]),
               (result.vertices, source[1])]
     cages = [(result.cage_v, result.cage_f), None, None, None,
@@ -343,13 +347,14 @@ def partial_targets() -> list[dict]:
         if not name.startswith("chair"):
             continue
         frame = Frame.of(target[0])
-        full = _cd_x1e2(frame, source, target, cagekit.deform(source, target).vertices)
+        full = _cd_x1e2(frame, source, target, cagekit.deform(*source, *target).vertices)
         for axis, view in ((2, "z"), (0, "x")):
             scan = (one_view_scan(*target, axis=axis), None)
             row = {"pair": name, "view": view, "points": len(scan[0]), "full": full}
             for key, kwargs in (("as full", {}), ("partial", {"target_kind": "partial"}),
                                 ("scale", {"method": "scale"})):
-                X = cagekit.deform(source, scan, **kwargs).vertices
+                X = cagekit.deform(*source, *scan,
+                                   options=cagekit.DeformOptions(**kwargs)).vertices
                 row[key] = _cd_x1e2(frame, source, target, X)
             rows.append(row)
             print(f"{name[:41]:<42}{view:>5}{row['points']:>8}" + "".join(
@@ -380,12 +385,12 @@ def furniture_pictures(folder, count: int = 6) -> list[str]:
         for label, kwargs in (("scale", {"method": "scale"}),
                               ("cage, parts free", {"weights": {"parts": 0.0}}),
                               ("cage (default)", {})):
-            result = cagekit.deform(source, target, **kwargs)
-            f = cagekit.evaluate(source, target, (result.vertices, source[1]))
+            result = cagekit.deform(*source, *target, options=cagekit.DeformOptions(**kwargs))
+            f = cagekit.evaluate(*source, *target, result.vertices)
             panels.append((result.vertices, source[1]))
-            titles.append(f"{label}\nCD {f['cd_x1e2']:.2f}, worst part "
-                          f"{100 * f['part_nonaffinity_worst']:.1f}%, planes "
-                          f"{f['planarity_p95_deg']:.1f} deg")
+            titles.append(f"{label}\nCD {f.cd_x1e2:.2f}, worst part "
+                          f"{100 * f.part_nonaffinity_worst:.1f}%, planes "
+                          f"{f.planarity_p95_deg:.1f} deg")
         path = os.path.join(folder, f"deform_real_{i}.png")
         render_meshes(panels, path, titles=titles, caption=name, size=(330, 330))
         paths.append(path)

@@ -103,7 +103,7 @@ def run_cagekit(v, f, faces):
 
     t = time.perf_counter()
     try:
-        cv, cf = fit_cage(v, f, faces=faces)
+        cv, cf, _ = fit_cage(v, f, faces=faces)
     except CageFitError as exc:
         return None, time.perf_counter() - t, str(exc)
     return (cv, cf), time.perf_counter() - t, ""
@@ -136,9 +136,9 @@ def evaluate(v, f, result, seconds, error, faces):
     if report is None:
         row.update(ok=False, checks={}, volume_ratio=None, max_distance=None, faces=None)
         return row
-    row.update(ok=report["ok"], checks=report["checks"], volume_ratio=report["volume_ratio"],
-               max_distance=report["max_distance"], faces=report["faces"],
-               volume_reference=report["volume_reference"])
+    row.update(ok=report.ok, checks=report.checks, volume_ratio=report.volume_ratio,
+               max_distance=report.max_distance, faces=report.faces,
+               volume_reference=report.volume_reference)
     return row
 
 

@@ -59,7 +59,7 @@ def real_case():
         return None
     meshes = [load_mesh(m.path) for m in found if furniture_kind(m.name) == "chair"]
     V, F = max((m for m in meshes if len(m[0]) <= MAX_REAL_VERTICES), key=lambda m: len(m[0]))
-    cage_v, cage_f = fit_cage(V, F, faces=200, seed=0)
+    cage_v, cage_f, _ = fit_cage(V, F, faces=200, seed=0)
     return V, cage_v, cage_f
 
 

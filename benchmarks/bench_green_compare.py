@@ -60,19 +60,20 @@ def compare_pair(source, target, symmetry):
     for coords in COORDS:
         t0 = time.perf_counter()
         try:
-            result = cagekit.deform(source, target, cage=cage, coords=coords,
-                                    symmetry=symmetry, seed=0)
+            result = cagekit.deform(*source, *target, *cage,
+                                    options=cagekit.DeformOptions(coords=coords,
+                                                                  symmetry=symmetry, seed=0))
         except InputError as exc:
             print(f"  {coords} failed: {exc}", file=sys.stderr)
             rows[coords] = dict.fromkeys(KEYS, float("nan"))
             continue
         seconds = time.perf_counter() - t0
         cage = (result.cage_v, result.cage_f)
-        figures = cagekit.evaluate(source, target, (result.vertices, source[1]))
+        figures = cagekit.evaluate(*source, *target, result.vertices)
         rows[coords] = {
-            "cd": figures["cd_x1e2"], "dcotlap": figures["dcotlap_x1e3"],
-            "part_worst": 100 * figures["part_nonaffinity_worst"],
-            "planar_p95": figures["planarity_p95_deg"],
+            "cd": figures.cd_x1e2, "dcotlap": figures.dcotlap_x1e3,
+            "part_worst": 100 * figures.part_nonaffinity_worst,
+            "planar_p95": figures.planarity_p95_deg,
             "conformal": conformal_distortion(source[0], source[1], result.vertices)["mean"],
             "seconds": seconds}
     return rows

@@ -54,13 +54,13 @@ def held_out_pairs(n_pairs):
 def run_method(name, model, source, target, points):
     start = time.perf_counter()
     if name in ("scale", "cage"):
-        result = cagekit.deform(source, target, method=name)
+        result = cagekit.deform(*source, *target, options=cagekit.DeformOptions(method=name))
     else:
-        result = deform_with_model(model, source, target, points=points,
+        result = deform_with_model(model, *source, *target, points=points,
                                    refine=name == "learned+refine")
     seconds = time.perf_counter() - start
-    figures = cagekit.evaluate(source, target, (result.vertices, source[1]))
-    return {"cd_x1e2": figures["cd_x1e2"], "dcotlap_x1e3": figures["dcotlap_x1e3"],
+    figures = cagekit.evaluate(*source, *target, result.vertices)
+    return {"cd_x1e2": figures.cd_x1e2, "dcotlap_x1e3": figures.dcotlap_x1e3,
             "seconds": seconds}
 
 
@@ -68,11 +68,11 @@ def inference_timing(model, points, repeats=5):
     """Median seconds of the learned deformation of a ~10,000-vertex chair."""
     source = synthetic.chair(seed=HELD_OUT_SEED + 999, resolution=1.55)
     target = synthetic.chair(seed=HELD_OUT_SEED + 998)
-    deform_with_model(model, source, target, points=points)  # warm up
+    deform_with_model(model, *source, *target, points=points)  # warm up
     times = []
     for _ in range(repeats):
         start = time.perf_counter()
-        deform_with_model(model, source, target, points=points)
+        deform_with_model(model, *source, *target, points=points)
         times.append(time.perf_counter() - start)
     return len(source[0]), float(np.median(times))
 

@@ -55,7 +55,7 @@ from cagekit import io  # noqa: E402
 from cagekit.cage import unique_edges, vertex_components  # noqa: E402
 from cagekit.datasets import characters, humanoid  # noqa: E402
 from cagekit.errors import CageFitError  # noqa: E402
-from cagekit.geometry.frame import normalize  # noqa: E402
+from cagekit.geometry.frame import Frame  # noqa: E402
 from cagekit.io.landmarks import load_landmarks  # noqa: E402
 from cagekit.metrics import dcotlap  # noqa: E402
 from cagekit.transfer import character as dt  # noqa: E402
@@ -156,8 +156,9 @@ def scores(rest_v, faces, truth_v, out_v, parts=None) -> dict:
     :func:`regions`); dCotLap x1e3; torn edges in per mille."""
     height = float(np.ptp(rest_v[:, 1]))
     err = np.linalg.norm(out_v - truth_v, axis=1) / height * 100
-    src_n = normalize(rest_v)[0]
-    _, c, s = normalize(truth_v)
+    src_n = Frame.of(rest_v).to_unit(rest_v)
+    frame = Frame.of(truth_v)
+    c, s = frame.centre, frame.scale
     per_region = {f"{r}_pct": float(err[mask].mean()) if mask.any() else float("nan")
                   for r, mask in (parts or {}).items()}
     return {"error_pct": float(err.mean()), "p95_pct": float(np.quantile(err, 0.95)),
@@ -189,8 +190,8 @@ def template_cages(template, cage, examples, model, seed) -> list[dict]:
     out = []
     for Vp, Fp in examples:
         t0 = time.perf_counter()
-        entry = {"classical": dt.template_cage_classical((Vt, Ft), (cage_v, cage_f),
-                                                         (Vp, Fp), seed=seed, fitter=fitter)}
+        entry = {"classical": dt.template_cage_classical(Vt, Ft, cage_v, cage_f,
+                                                         Vp, Fp, seed=seed, fitter=fitter)}
         entry["classical_seconds"] = time.perf_counter() - t0
         if model is not None:
             t0 = time.perf_counter()

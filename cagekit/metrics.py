@@ -26,6 +26,8 @@ scores 0 on the first two; the figures are invariant to similarities of the resu
 
 from __future__ import annotations
 
+from dataclasses import asdict, dataclass
+
 import numpy as np
 from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
@@ -41,10 +43,10 @@ from cagekit.geometry import (
     surface_laplacian,
 )
 from cagekit.geometry.frame import Frame
-from cagekit.geometry.sampling import surface_samples
+from cagekit.geometry.sampling import sample_surface
 
-__all__ = ["chamfer", "chamfer_distance", "conformal_distortion", "dcotlap", "evaluate",
-           "nearest_residuals", "part_nonaffinity", "planarity", "symmetry_error",
+__all__ = ["Evaluation", "chamfer", "point_chamfer", "conformal_distortion", "dcotlap",
+           "evaluate", "nearest_residuals", "part_nonaffinity", "planarity", "symmetry_error",
            "MIN_PART_VERTICES", "PLANAR_DEGREES", "SYMMETRY_TOLERANCE"]
 
 #: a source component with fewer vertices is too small to be a part (a screw, a label)
@@ -59,7 +61,7 @@ SYMMETRY_TOLERANCE = 1e-3
 def nearest_residuals(P: np.ndarray, Q: np.ndarray,
                       tree_Q: cKDTree | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Each point of ``P`` minus its nearest point of ``Q``: the one nearest-neighbour step
-    of every Chamfer in cagekit (:func:`chamfer_distance`, and the energy's
+    of every Chamfer in cagekit (:func:`point_chamfer`, and the energy's
     :func:`cagekit.deformation.terms.chamfer_loss` with its gradient).
 
     Parameters
@@ -92,7 +94,7 @@ def _nearest_sq(P: np.ndarray, Q: np.ndarray) -> np.ndarray:
     return np.einsum("ij,ij->i", diff, diff)
 
 
-def chamfer_distance(P: ArrayLike, Q: ArrayLike) -> float:
+def point_chamfer(P: ArrayLike, Q: ArrayLike) -> float:
     """Chamfer distance between two point sets (squared, both directions summed).
 
     ``mean_{a in P} min_{b in Q} |a - b|^2 + mean_{b in Q} min_{a in P} |a - b|^2``,
@@ -110,7 +112,7 @@ def chamfer_distance(P: ArrayLike, Q: ArrayLike) -> float:
 
     Examples
     --------
-    >>> chamfer_distance([[0, 0, 0]], [[0, 0, 2]])
+    >>> point_chamfer([[0, 0, 0]], [[0, 0, 2]])
     8.0
     """
     P = as_vertices(P, "P")
@@ -140,14 +142,14 @@ def chamfer(
     Fa, Fb : array_like, shape (ma, 3) and (mb, 3), int, or None
         Their triangles; ``None`` or empty for point clouds.
     n_samples : int, optional
-        Samples per shape (see :func:`surface_samples`).
+        Samples per shape (see :func:`~cagekit.geometry.sampling.sample_surface`).
     seed : int, optional
         Non-negative; the two sampling streams are derived from it.
 
     Returns
     -------
     cd : float
-        :func:`chamfer_distance` of the two sample sets. Identical shapes give a small
+        :func:`point_chamfer` of the two sample sets. Identical shapes give a small
         positive value, of the order of the squared sample spacing.
 
     Raises
@@ -167,9 +169,9 @@ def chamfer(
     seed_a, seed_b = (
         int(s.generate_state(1)[0]) for s in np.random.SeedSequence(int(seed)).spawn(2)
     )
-    A = surface_samples(Va, Fa, n_samples, seed_a)
-    B = surface_samples(Vb, Fb, n_samples, seed_b)
-    return chamfer_distance(A, B)
+    A = sample_surface(Va, Fa, n_samples, seed_a)
+    B = sample_surface(Vb, Fb, n_samples, seed_b)
+    return point_chamfer(A, B)
 
 
 def dcotlap(V_src: ArrayLike, F_src: ArrayLike, V_out: ArrayLike) -> float:
@@ -220,25 +222,71 @@ def dcotlap(V_src: ArrayLike, F_src: ArrayLike, V_out: ArrayLike) -> float:
     return float(np.mean(np.square(L @ (V_out - V_src))))
 
 
-def evaluate(source, target, deformed, n_samples: int = 5000, seed: int = 0,
-             frames=None) -> dict:
+@dataclass(frozen=True)
+class Evaluation:
+    """The figures of one deformation (:func:`evaluate`).
+
+    Attributes
+    ----------
+    cd, dcotlap : float
+        Chamfer distance and cotangent-Laplacian distortion (module docstring).
+    cd_x1e2, dcotlap_x1e3 : float
+        The same as the paper's tables print them.
+    part_nonaffinity_median, part_nonaffinity_worst : float
+        :func:`part_nonaffinity`'s vertex-weighted median and worst part.
+    parts : int
+        Parts measured.
+    planarity_mean_deg, planarity_p95_deg : float
+        :func:`planarity`'s mean and 95th percentile, degrees.
+    symmetry_axis : {"x", "y", "z"} or None
+        The source's mirror axis (:func:`symmetry_error`), None when it has none.
+    symmetry_error : float or None
+    n_samples, seed : int
+        The Chamfer distance's samples per surface and seed.
+    """
+
+    cd: float
+    dcotlap: float
+    cd_x1e2: float
+    dcotlap_x1e3: float
+    part_nonaffinity_median: float
+    part_nonaffinity_worst: float
+    parts: int
+    planarity_mean_deg: float
+    planarity_p95_deg: float
+    symmetry_axis: str | None
+    symmetry_error: float | None
+    n_samples: int
+    seed: int
+
+    def as_dict(self) -> dict:
+        """The figures as a plain dict (for JSON), in field order."""
+        return asdict(self)
+
+
+def evaluate(V_src: ArrayLike, F_src: ArrayLike, V_tgt: ArrayLike, F_tgt: ArrayLike | None,
+             V_out: ArrayLike, n_samples: int = 5000, seed: int = 0,
+             frames: tuple[Frame, Frame] | None = None) -> Evaluation:
     """CD, dCotLap and the structure figures of a deformed source against a target.
 
     The target is normalised on its own; the deformed source is mapped by the target's
     ``(center, scale)``; the source normalised on its own is the distortion reference.
-    ``cd`` compares the deformed source (target frame) with the normalised target;
-    ``dcotlap`` uses ``L`` of the normalised source and ``V_out`` = the deformed source
-    in the target's frame.
+    ``cd`` compares the deformed source (target frame, the source's faces) with the
+    normalised target; ``dcotlap`` uses ``L`` of the normalised source and ``V_out`` = the
+    deformed source in the target's frame.
 
     Parameters
     ----------
-    source : (V, F) pair
-        Source mesh before deformation, ``V`` (n, 3) float, ``F`` (m, 3) int, ``m >= 1``.
-    target : (V, F) pair
-        Target mesh, or point cloud with ``F`` None or empty.
-    deformed : (V, F) pair
-        Deformed source, ``V`` (n, 3) in the same vertex order as the source. ``F`` is
-        used for sampling; when None or empty the source's faces are used.
+    V_src : (n, 3) array_like of float
+        The source before deformation.
+    F_src : (m, 3) array_like of int
+        Its faces, ``m >= 1`` of positive area.
+    V_tgt : (t, 3) array_like of float
+        The target.
+    F_tgt : (p, 3) array_like of int, or None
+        Its faces; None or empty for a point cloud.
+    V_out : (n, 3) array_like of float
+        The deformed source, in the source's vertex order (its faces are ``F_src``).
     n_samples : int, optional
         Samples per surface for CD (5000 in the paper).
     seed : int, optional
@@ -250,12 +298,8 @@ def evaluate(source, target, deformed, n_samples: int = 5000, seed: int = 0,
 
     Returns
     -------
-    dict
-        ``{"cd": float, "dcotlap": float, "cd_x1e2": float, "dcotlap_x1e3": float,
-        "part_nonaffinity_median": float, "part_nonaffinity_worst": float, "parts": int,
-        "planarity_mean_deg": float, "planarity_p95_deg": float, "symmetry_axis": str or
-        None, "symmetry_error": float or None, "n_samples": int, "seed": int}``: the
-        structure figures are those of :func:`part_nonaffinity`, :func:`planarity` and
+    Evaluation
+        The structure figures are those of :func:`part_nonaffinity`, :func:`planarity` and
         :func:`symmetry_error` on the source and the deformed source (invariant to the
         frames).
 
@@ -269,44 +313,36 @@ def evaluate(source, target, deformed, n_samples: int = 5000, seed: int = 0,
     --------
     >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]])
     >>> F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
-    >>> moved = (2 * V + 1, F)  # scaled and translated copy, also used as the target
-    >>> m = evaluate((V, F), moved, moved)
-    >>> 0.0 < m["cd"] < 1e-2, m["dcotlap"] < 1e-20  # CD: the sampling resolution only
+    >>> moved = 2 * V + 1  # scaled and translated copy, also used as the target
+    >>> m = evaluate(V, F, moved, F, moved)
+    >>> 0.0 < m.cd < 1e-2, m.dcotlap < 1e-20  # CD: the sampling resolution only
     (True, True)
     """
-    Vs, Fs = as_shape(source, name="source")
-    Vt, Ft = as_shape(target, name="target")
-    Vd, Fd = as_shape(deformed, name="deformed")
+    Vs = as_vertices(V_src, "the source")
+    Fs = as_faces(F_src, len(Vs), "the source's faces")
+    Vt, Ft = as_shape((as_vertices(V_tgt, "the target"), F_tgt), name="target")
+    Vd = as_vertices(V_out, "the deformed shape")
     if len(Vd) != len(Vs):
         raise InputError(
             f"the deformed shape has {len(Vd)} vertices but the source has {len(Vs)}"
         )
     if len(Fs) == 0:
         raise InputError("the source must be a mesh with faces (dCotLap needs them)")
-    if len(Fd) == 0:
-        Fd = Fs
     fs, ft = (Frame.of(Vs), Frame.of(Vt)) if frames is None else frames
     Vs_n, Vt_n, Vd_t = fs.to_unit(Vs), ft.to_unit(Vt), ft.to_unit(Vd)
-    cd = chamfer(Vd_t, Fd, Vt_n, Ft, n_samples=n_samples, seed=seed)
+    cd = chamfer(Vd_t, Fs, Vt_n, Ft, n_samples=n_samples, seed=seed)
     dist = dcotlap(Vs_n, Fs, Vd_t)
     parts = part_nonaffinity(Vs, Fs, Vd)
     flat = planarity(Vs, Fs, Vd)
     mirror = symmetry_error(Vs, Vd)
-    return {
-        "cd": cd,
-        "dcotlap": dist,
-        "cd_x1e2": cd * 1e2,
-        "dcotlap_x1e3": dist * 1e3,
-        "part_nonaffinity_median": parts["median"],
-        "part_nonaffinity_worst": parts["worst"],
-        "parts": parts["parts"],
-        "planarity_mean_deg": flat["mean_deg"],
-        "planarity_p95_deg": flat["p95_deg"],
-        "symmetry_axis": None if mirror is None else mirror["axis"],
-        "symmetry_error": None if mirror is None else mirror["error"],
-        "n_samples": int(n_samples),
-        "seed": int(seed),
-    }
+    return Evaluation(
+        cd=cd, dcotlap=dist, cd_x1e2=cd * 1e2, dcotlap_x1e3=dist * 1e3,
+        part_nonaffinity_median=parts["median"], part_nonaffinity_worst=parts["worst"],
+        parts=parts["parts"], planarity_mean_deg=flat["mean_deg"],
+        planarity_p95_deg=flat["p95_deg"],
+        symmetry_axis=None if mirror is None else mirror["axis"],
+        symmetry_error=None if mirror is None else mirror["error"],
+        n_samples=int(n_samples), seed=int(seed))
 
 
 def part_nonaffinity(V_src: ArrayLike, F_src: ArrayLike, V_out: ArrayLike,

@@ -1,7 +1,7 @@
 """Training data of the learned mode: normalised point samples of shape collections.
 
 A :class:`ShapeCollection` holds ``P`` surface samples of each of ``N`` shapes, each
-normalised on its own into the unit frame (:func:`cagekit.normalize`). It comes from a
+normalised on its own into the unit frame (:meth:`cagekit.Frame.of`). It comes from a
 folder of meshes (:meth:`ShapeCollection.from_folder`, cached incrementally by a
 :class:`SampleCache` keyed on each file's path, size and ``mtime_ns``), from the procedural
 families (:meth:`ShapeCollection.synthetic`), from shapes in correspondence
@@ -35,8 +35,8 @@ import numpy as np
 from cagekit.datasets import synthetic as _synthetic
 from cagekit.errors import CagekitWarning, InputError
 from cagekit.geometry import as_count
-from cagekit.geometry.frame import normalize
-from cagekit.geometry.sampling import surface_samples
+from cagekit.geometry.frame import Frame
+from cagekit.geometry.sampling import sample_surface
 from cagekit.io import SUPPORTED_MESH_EXTENSIONS, load_shape
 from cagekit.io.files import atomic_output
 from cagekit.progress import progress_bar
@@ -98,7 +98,7 @@ def _sample_shape(V, F, points: int, seed: int) -> np.ndarray:
     Raises InputError for shapes that cannot be normalised or sampled (zero extent, zero
     area).
     """
-    P = surface_samples(normalize(V)[0], F, points, seed=seed, fill=True)
+    P = sample_surface(Frame.of(V).to_unit(V), F, points, seed=seed, fill=True)
     return np.ascontiguousarray(P, dtype=np.float32)
 
 
@@ -285,7 +285,7 @@ class ShapeCollection:
                                  "shapes in correspondence share one vertex order")
         rows = corresponding_rows(n, points, seed)
         names = [path.relative_to(root).as_posix() for path in paths]
-        collection = cls(names, np.stack([normalize(V)[0][rows] for V in shapes]
+        collection = cls(names, np.stack([Frame.of(V).to_unit(V)[rows] for V in shapes]
                                          ).astype(np.float32))
         collection.rows, collection.vertex_count = rows, n
         return collection
@@ -531,7 +531,8 @@ class FixedSource:
         path = pathlib.Path(path)
         V, F = load_shape(path)
         try:
-            Vn, center, scale = normalize(V)
+            frame = Frame.of(V)
+            Vn, center, scale = frame.to_unit(V), frame.centre, frame.scale
         except InputError as exc:
             raise InputError(exc.problem, path) from None
         if corresponding:
@@ -835,7 +836,8 @@ def augment(points, rng, low=0.75, high=1.25) -> np.ndarray:
         raise InputError(f"need 0 < low <= high, got low={low}, high={high}")
     rng = np.random.default_rng(rng)
     scale = rng.uniform(low, high, size=3)
-    return normalize(np.asarray(points, dtype=np.float64) * scale)[0].astype(np.float32)
+    scaled = np.asarray(points, dtype=np.float64) * scale
+    return Frame.of(scaled).to_unit(scaled).astype(np.float32)
 
 
 def make_batch(collection, pairs, *, epoch, step, seed=0, augmentation=True,

@@ -12,35 +12,34 @@ template's normalised samples (``model.fixed_source``); :func:`predict_fixed_sou
 source cage is in the template's normalised frame (``* fixed_source_scale +
 fixed_source_center`` of ``model.config`` maps it to the template's own frame), the
 deformed cage in the target's normalised frame (``* target scale + target centre``, from
-:func:`cagekit.normalize` of the target).
+:meth:`cagekit.Frame.of` of the target).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import time
 import warnings
+from collections.abc import Callable
 
 import numpy as np
 import torch
+from numpy.typing import ArrayLike
 
 from cagekit.cage import check_cage, self_intersecting_faces
 from cagekit.coords import bind
 from cagekit.coords.binding import warn_outside
-from cagekit.deformation import CageProblem, DeformResult, solve
+from cagekit.deformation import CageProblem, DeformOptions, DeformResult, solve
 from cagekit.errors import CagekitWarning, InputError
 from cagekit.geometry import as_shape
 from cagekit.geometry.frame import Frame
-from cagekit.geometry.sampling import surface_samples
+from cagekit.geometry.sampling import sample_surface
 from cagekit_learn.networks import NeuralCages
 from cagekit_learn.train import load_model
 
 __all__ = ["ModelDeformer", "predict", "predict_fixed_source", "predict_cages",
            "deform_with_model"]
 
-#: what ``refine_options`` may hold: the problem's options and the solver's
-_SOLVE_OPTIONS = ("max_evaluations", "tolerance", "progress")
-_REFINE_OPTIONS = {"symmetry", "weights", "samples", "shape_points", "reference", "coords",
-                   *_SOLVE_OPTIONS}
 
 
 def predict(model: NeuralCages, source_points, target_points) -> tuple[np.ndarray, np.ndarray]:
@@ -75,7 +74,7 @@ def predict_fixed_source(model: NeuralCages, target_points) -> tuple[np.ndarray,
         Trained with ``--fixed-source`` (``model.fixed_source`` holds the template's
         normalised samples, which are the source here).
     target_points : (P, 3) array_like of float
-        Samples of the target normalised on its own (:func:`cagekit.normalize`). Under
+        Samples of the target normalised on its own (:meth:`cagekit.Frame.of`). Under
         the L2 alignment the model saw the vertex rows ``model.config.fixed_source_rows``
         of its targets; taking the same rows of a target in correspondence matches
         training best.
@@ -118,17 +117,23 @@ def _predicted(model, Vs, Fs, Vt, Ft, points, seed):
             config, "fixed_source_vertex_count", None):
         T = Vt_n[np.asarray(rows, dtype=np.int64)]
     else:
-        T = surface_samples(Vt_n, Ft, points, seed=seed + 1)
+        T = sample_surface(Vt_n, Ft, points, seed=seed + 1)
     if fixed is not None:
         cage_n, deformed_n = predict_fixed_source(model, T)
     else:
-        S = surface_samples(Vs_n, Fs, points, seed=seed)
+        S = sample_surface(Vs_n, Fs, points, seed=seed)
         cage_n, deformed_n = predict(model, S, T)
     return fs, ft, Vs_n, Vt_n, cage_n, deformed_n
 
 
-def predict_cages(model: NeuralCages, source, target, *, points: int | None = None,
-                  seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+def _shapes(V_src, F_src, V_tgt, F_tgt):
+    """Both shapes checked, as :func:`cagekit.deform` checks them."""
+    return as_shape((V_src, F_src), name="source") + as_shape((V_tgt, F_tgt), name="target")
+
+
+def predict_cages(model: NeuralCages, V_src: ArrayLike, F_src: ArrayLike | None,
+                  V_tgt: ArrayLike, F_tgt: ArrayLike | None = None, *,
+                  points: int | None = None, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """The predicted source cage and its deformation, in the shapes' own frames.
 
     The first half of :func:`deform_with_model` (samples fed exactly as it feeds them,
@@ -137,7 +142,8 @@ def predict_cages(model: NeuralCages, source, target, *, points: int | None = No
     Parameters
     ----------
     model : NeuralCages
-    source, target : (V, F) pairs, trimesh objects or (n, 3) arrays
+    V_src, F_src, V_tgt, F_tgt : array_like
+        The source and the target, as :func:`cagekit.deform` takes them.
     points : int, optional
         Samples of each shape; default 1,024.
     seed : int, default 0
@@ -147,22 +153,24 @@ def predict_cages(model: NeuralCages, source, target, *, points: int | None = No
     cage_v, deformed_cage_v : (k, 3) float64
         In the source's and the target's frames and units; faces ``model.cage_f``.
     """
-    Vs, Fs = as_shape(source, name="source")
-    Vt, Ft = as_shape(target, name="target")
+    Vs, Fs, Vt, Ft = _shapes(V_src, F_src, V_tgt, F_tgt)
     fs, ft, _, _, cage_n, deformed_n = _predicted(model, Vs, Fs, Vt, Ft, points, seed)
     return fs.to_world(cage_n), ft.to_world(deformed_n)
 
 
-def deform_with_model(model: NeuralCages, source, target, *, points: int | None = None,
-                      seed: int = 0, refine: bool = False, **refine_options) -> DeformResult:
-    """Deform ``source`` to take ``target``'s shape with a trained model.
+def deform_with_model(model: NeuralCages, V_src: ArrayLike, F_src: ArrayLike | None,
+                      V_tgt: ArrayLike, F_tgt: ArrayLike | None = None, *,
+                      points: int | None = None, seed: int = 0, refine: bool = False,
+                      options: DeformOptions | None = None,
+                      progress: Callable[[int, int], object] | None = None) -> DeformResult:
+    """Deform a source to take a target's shape with a trained model.
 
     Parameters
     ----------
     model : NeuralCages
         From :func:`cagekit_learn.train.load_model`.
-    source, target : (V, F) pairs, trimesh objects or (n, 3) arrays
-        As :func:`cagekit.deform` takes them.
+    V_src, F_src, V_tgt, F_tgt : array_like
+        The source and the target, as :func:`cagekit.deform` takes them.
     points : int, optional
         Samples of each shape fed to the network; default: the number it was trained with
         (1,024 unless configured otherwise), which the caller passes.
@@ -172,12 +180,15 @@ def deform_with_model(model: NeuralCages, source, target, *, points: int | None 
         Then optimise the cage per pair, started from the predicted deformation (the
         energy of :func:`cagekit.deform`, as a :class:`cagekit.deformation.CageProblem`
         solved by :func:`cagekit.deformation.solve` in the unit frames).
-    **refine_options
-        When refining, the options of :func:`cagekit.deform` that tune the optimisation
-        (``symmetry``, ``weights``, ``samples``, ``shape_points``, ``reference``,
-        ``max_evaluations``, ``tolerance``, ``progress``); the refinement runs in the
-        unit frames the prediction is in (:class:`cagekit.deformation.CageProblem`), with
-        the coordinates the model was trained with (a ``coords`` option is ignored).
+    options : cagekit.DeformOptions, optional
+        When refining, the energy's terms and the solver's budget (``symmetry``,
+        ``weights``, ``samples``, ``shape_points``, ``reference``, ``max_evaluations``,
+        ``tolerance``, ``target_kind``); the refinement runs in the unit frames the
+        prediction is in (:class:`cagekit.deformation.CageProblem`), with the
+        coordinates the model was trained with (``coords``, ``method``, ``faces`` and
+        ``check`` do not apply).
+    progress : callable, optional
+        When refining, as :func:`cagekit.deform` calls it.
 
     Returns
     -------
@@ -196,12 +207,10 @@ def deform_with_model(model: NeuralCages, source, target, *, points: int | None 
     samples otherwise.
     """
     start = time.perf_counter()
-    unknown = set(refine_options) - _REFINE_OPTIONS
-    if unknown:
-        raise InputError(f"unknown refine option(s) {', '.join(sorted(unknown))}; options: "
-                         f"{', '.join(sorted(_REFINE_OPTIONS))}")
-    Vs, Fs = as_shape(source, name="source")
-    Vt, Ft = as_shape(target, name="target")
+    options = DeformOptions() if options is None else options
+    if not isinstance(options, DeformOptions):
+        raise InputError(f"options must be DeformOptions, got {type(options).__name__}")
+    Vs, Fs, Vt, Ft = _shapes(V_src, F_src, V_tgt, F_tgt)
     fs, ft, Vs_n, Vt_n, cage_n, deformed_n = _predicted(model, Vs, Fs, Vt, Ft, points, seed)
     cage_f = check_cage(cage_n, model.cage_f.cpu().numpy(), intersections=False)
     crossing = int(self_intersecting_faces(cage_n, cage_f).sum())
@@ -213,11 +222,12 @@ def deform_with_model(model: NeuralCages, source, target, *, points: int | None 
                           source_frame=fs, target_frame=ft)
     if refine:  # the per-pair optimisation from the prediction, in the unit frames
         warn_outside(Vs_n, cage_n, cage_f, shape="the source", cage="the model's cage")
-        solving = {k: refine_options.pop(k) for k in _SOLVE_OPTIONS if k in refine_options}
-        refine_options.pop("coords", None)  # the model's own coordinates, always
-        problem = CageProblem.create((Vs_n, Fs), (Vt_n, Ft), (cage_n, cage_f), seed=seed,
-                                     coords=_coords_of(model), **refine_options)
-        result.set_solution(problem, solve(problem, deformed_n, **solving))
+        problem = CageProblem.create(
+            Vs_n, Fs, Vt_n, Ft, cage_n, cage_f,
+            dataclasses.replace(options, coords=_coords_of(model), seed=seed))
+        result.set_solution(problem, solve(
+            problem, deformed_n, max_evaluations=options.max_evaluations,
+            tolerance=options.tolerance, progress=progress))
         result.method = "learned+refine"
     else:
         binding = bind(Vs_n, cage_n, cage_f, method=_coords_of(model), check=False)
@@ -251,7 +261,7 @@ class ModelDeformer:
     Examples
     --------
     >>> deformer = ModelDeformer("runs/chairs", refine=True)  # doctest: +SKIP
-    >>> result = deformer(source, target, seed=0)  # doctest: +SKIP
+    >>> result = deformer(V_src, F_src, V_tgt, F_tgt, seed=0)  # doctest: +SKIP
     """
 
     def __init__(self, path: str, refine: bool = False):
@@ -261,11 +271,12 @@ class ModelDeformer:
     def __getstate__(self):
         return {"path": self.path, "refine": self.refine, "_model": None}
 
-    def __call__(self, source, target, seed: int = 0) -> DeformResult:
+    def __call__(self, V_src: ArrayLike, F_src: ArrayLike | None, V_tgt: ArrayLike,
+                 F_tgt: ArrayLike | None = None, seed: int = 0) -> DeformResult:
         if self._model is None:
 
             model, payload = load_model(self.path)
             self._model = (model, int(payload.get("config", {}).get("points", 1024)))
         model, points = self._model
-        return deform_with_model(model, source, target, points=points, seed=seed,
+        return deform_with_model(model, V_src, F_src, V_tgt, F_tgt, points=points, seed=seed,
                                  refine=self.refine)

@@ -44,7 +44,7 @@ from cagekit.datasets.synthetic import FAMILIES
 from cagekit.deformation.terms import ALPHA_MVC, ALPHA_SHAPE, mirror_partners
 from cagekit.errors import CagekitWarning, InputError
 from cagekit.geometry import as_count
-from cagekit.geometry.frame import normalize
+from cagekit.geometry.frame import Frame
 from cagekit.progress import progress_bar, progress_enabled
 from cagekit_learn import losses
 from cagekit_learn.checkpoint import (
@@ -208,7 +208,7 @@ def load_source_cage(cage_path, template=None) -> tuple[list, list]:
         The fixed source's mesh (``--fixed-source``). When given, the cage file is in the
         template's own frame (the cage drawn around ``template.obj``) and is mapped into
         the normalised source frame with the template's normalisation,
-        ``(V - center) / scale`` (:func:`cagekit.normalize` of the template). Without it
+        ``(V - center) / scale`` (:meth:`cagekit.Frame.of` of the template). Without it
         the cage file is already in the normalised source frame (the source normalised
         to ``[-1, 1]``).
 
@@ -231,7 +231,8 @@ def load_source_cage(cage_path, template=None) -> tuple[list, list]:
     if template is not None:
         V = io.load_shape(template)[0]
         try:
-            _, center, scale = normalize(V)
+            frame = Frame.of(V)
+            center, scale = frame.centre, frame.scale
         except InputError as exc:
             raise InputError(exc.problem, template) from None
         cage_v = (np.asarray(cage_v, dtype=np.float64) - center) / scale
@@ -746,7 +747,8 @@ def fixed_source_matches(path, model: dict) -> bool:
         return False
     V = io.load_shape(path)[0]
     try:
-        Vn, center, scale = normalize(V)
+        frame = Frame.of(V)
+        Vn, center, scale = frame.to_unit(V), frame.centre, frame.scale
     except InputError as exc:
         raise InputError(exc.problem, path) from None
     if (len(V) != model.get("fixed_source_vertex_count")

@@ -8,7 +8,7 @@ import numpy as np
 
 from cagekit.errors import InputError
 from cagekit.geometry import as_vertices
-from cagekit.geometry.frame import normalize
+from cagekit.geometry.frame import Frame
 from cagekit_learn.inference import predict_cages
 
 __all__ = ["check_model", "template_cage_learned"]
@@ -21,7 +21,8 @@ def check_model(model, template_v, cage_v, path=None) -> None:
     if config.fixed_cage_v is None or getattr(config, "fixed_source_points", None) is None:
         raise InputError("the model was not trained with a fixed source and source cage "
                          "(cagekit train --fixed-source TEMPLATE --source-cage CAGE)", path)
-    _, cs, ss = normalize(template_v)
+    frame = Frame.of(template_v)
+    cs, ss = frame.centre, frame.scale
     expected = (as_vertices(cage_v, "cage_v") - cs) / ss
     trained = np.asarray(config.fixed_cage_v, dtype=np.float64)
     if trained.shape != expected.shape or not np.allclose(trained, expected, atol=1e-6):
@@ -57,4 +58,5 @@ def template_cage_learned(model, template_v, cage_v, pose) -> np.ndarray:
     """
     check_model(model, template_v, cage_v)
     points = len(model.config.fixed_source_points)
-    return predict_cages(model, np.asarray(template_v, np.float64), pose, points=points)[1]
+    return predict_cages(model, np.asarray(template_v, np.float64), None, *pose,
+                         points=points)[1]

@@ -43,16 +43,17 @@ def main(example: str, expected: list[str]) -> None:
                      "the installation replaced it")
     source = io.load_mesh(os.path.join(example, "chair_source.obj"))
     target = io.load_mesh(os.path.join(example, "chair_target.obj"))
-    cage_v, cage_f = cagekit.fit_cage(*source, faces=120)
+    cage_v, cage_f, _ = cagekit.fit_cage(*source, faces=120)
     for method in ("mvc", "green"):
         binding = cagekit.bind(source[0], cage_v, cage_f, method)
         moved = binding.deform(cage_v)
         assert np.allclose(moved, source[0], atol=1e-8), f"{method} does not reproduce"
     weights = cagekit.bind(source[0], cage_v, cage_f).weights
     assert np.allclose(weights.sum(axis=1), 1.0), "MVC weights do not sum to 1"
-    result = cagekit.deform(source, target, cage=(cage_v, cage_f), max_evaluations=15)
-    figures = cagekit.evaluate(source, target, result.vertices)
-    assert np.isfinite(figures["cd"]) and figures["cd"] < 0.05, figures
+    result = cagekit.deform(*source, *target, cage_v, cage_f,
+                            options=cagekit.DeformOptions(max_evaluations=15))
+    figures = cagekit.evaluate(*source, *target, result.vertices)
+    assert np.isfinite(figures.cd) and figures.cd < 0.05, figures
     with tempfile.TemporaryDirectory() as folder:
         for suffix in (".obj", ".ply", ".off"):
             path = os.path.join(folder, "deformed" + suffix)
@@ -68,7 +69,7 @@ def main(example: str, expected: list[str]) -> None:
         assert done.returncode == 0, done.stderr
     assert callable(cagekit.transfer.fit_character) and callable(cagekit.batch.amplify.amplify)
     print(f"smoke test passed: cage {len(cage_f)} faces, deformed CD x1e2 "
-          f"{100 * figures['cd']:.2f}")
+          f"{100 * figures.cd:.2f}")
 
 
 if __name__ == "__main__":

@@ -9,15 +9,15 @@ from scipy.spatial.transform import Rotation
 
 from cagekit.errors import InputError
 from cagekit.geometry import cotangent_laplacian
-from cagekit.geometry.frame import normalize
-from cagekit.geometry.sampling import surface_samples
+from cagekit.geometry.frame import Frame
+from cagekit.geometry.sampling import sample_surface
 from cagekit.metrics import (
     chamfer,
-    chamfer_distance,
     dcotlap,
     evaluate,
     part_nonaffinity,
     planarity,
+    point_chamfer,
     symmetry_error,
 )
 
@@ -42,55 +42,55 @@ def bend(V, amount=0.3):
 # ------------------------------------------------------------------------ Chamfer
 
 
-def test_chamfer_distance_identical_sets_is_zero():
+def test_point_chamfer_identical_sets_is_zero():
     P = np.random.default_rng(0).normal(size=(500, 3))
-    assert chamfer_distance(P, P) == 0.0
-    assert chamfer_distance(P, P[::-1]) == 0.0
+    assert point_chamfer(P, P) == 0.0
+    assert point_chamfer(P, P[::-1]) == 0.0
 
 
-def test_chamfer_distance_translated_copy_is_twice_squared_shift():
+def test_point_chamfer_translated_copy_is_twice_squared_shift():
     P = lattice()
     t = np.array(
         [0.01, -0.02, 0.015]
     )  # |t| << spacing 1: each point's nearest is its copy
-    cd = chamfer_distance(P, P + t)
+    cd = point_chamfer(P, P + t)
     assert cd == pytest.approx(2 * t @ t, rel=1e-12)
 
 
-def test_chamfer_distance_known_asymmetric_sets_and_symmetry():
+def test_point_chamfer_known_asymmetric_sets_and_symmetry():
     P = np.array([[0.0, 0, 0], [1, 0, 0]])
     Q = np.array([[0.0, 0, 0], [1, 0, 0], [5, 0, 0]])
     # P -> Q: 0; Q -> P: (0 + 0 + 16) / 3. Summed, not halved.
-    assert chamfer_distance(P, Q) == pytest.approx(16 / 3, rel=1e-15)
-    assert chamfer_distance(P, Q) == chamfer_distance(Q, P)
+    assert point_chamfer(P, Q) == pytest.approx(16 / 3, rel=1e-15)
+    assert point_chamfer(P, Q) == point_chamfer(Q, P)
     rng = np.random.default_rng(1)
     A, B = rng.normal(size=(300, 3)), rng.normal(size=(200, 3)) + 0.5
-    assert chamfer_distance(A, B) == chamfer_distance(B, A)
+    assert point_chamfer(A, B) == point_chamfer(B, A)
 
 
-def test_chamfer_distance_rejects_bad_input():
+def test_point_chamfer_rejects_bad_input():
     with pytest.raises(InputError, match="NaN"):
-        chamfer_distance([[0, 0, np.nan]], [[0, 0, 0]])
+        point_chamfer([[0, 0, np.nan]], [[0, 0, 0]])
     with pytest.raises(InputError, match="no points"):
-        chamfer_distance(np.zeros((0, 3)), [[0, 0, 0]])
+        point_chamfer(np.zeros((0, 3)), [[0, 0, 0]])
     with pytest.raises(InputError, match="shape"):
-        chamfer_distance([[0, 0]], [[0, 0, 0]])
+        point_chamfer([[0, 0]], [[0, 0, 0]])
 
 
-def test_surface_samples_mesh_and_clouds():
+def test_sample_surface_mesh_and_clouds():
     V, F = ellipsoid()
-    S = surface_samples(V, F, n=1000, seed=3)
+    S = sample_surface(V, F, n=1000, seed=3)
     assert S.shape == (1000, 3)
-    np.testing.assert_array_equal(S, surface_samples(V, F, n=1000, seed=3))
+    np.testing.assert_array_equal(S, sample_surface(V, F, n=1000, seed=3))
     # a small cloud is used as it is
-    np.testing.assert_array_equal(surface_samples(V, None, n=5000), V)
+    np.testing.assert_array_equal(sample_surface(V, None, n=5000), V)
     np.testing.assert_array_equal(
-        surface_samples(V, np.zeros((0, 3), int), n=len(V)), V
+        sample_surface(V, np.zeros((0, 3), int), n=len(V)), V
     )
     # a large cloud: a seeded subset of distinct points, in their original order
-    sub = surface_samples(V, None, n=50, seed=4)
+    sub = sample_surface(V, None, n=50, seed=4)
     assert sub.shape == (50, 3)
-    np.testing.assert_array_equal(sub, surface_samples(V, None, n=50, seed=4))
+    np.testing.assert_array_equal(sub, sample_surface(V, None, n=50, seed=4))
     rows = [int(np.flatnonzero((V == p).all(1))[0]) for p in sub]
     assert len(set(rows)) == 50 and rows == sorted(rows)
 
@@ -215,11 +215,11 @@ def test_evaluate_ignores_a_zero_area_face():
     F_flat = np.vstack([F, [[0, len(V) - 1, j]]])
     tgt = ellipsoid(axes=(1.2, 1.8, 0.7))
     dfm = bend(V, 0.2)
-    without = evaluate((V, F), tgt, (dfm, F), n_samples=1000)
-    with_flat = evaluate((V, F_flat), tgt, (dfm, F_flat), n_samples=1000)
-    assert with_flat["dcotlap"] == pytest.approx(without["dcotlap"], rel=1e-12)
-    assert without["dcotlap"] > 0
-    assert with_flat["cd"] == pytest.approx(without["cd"], rel=1e-12)
+    without = evaluate(V, F, *tgt, dfm, n_samples=1000)
+    with_flat = evaluate(V, F_flat, *tgt, dfm, n_samples=1000)
+    assert with_flat.dcotlap == pytest.approx(without.dcotlap, rel=1e-12)
+    assert without.dcotlap > 0
+    assert with_flat.cd == pytest.approx(without.cd, rel=1e-12)
     assert dcotlap(V, F_flat, dfm) == pytest.approx(dcotlap(V, F, dfm), rel=1e-12)
 
 
@@ -239,31 +239,32 @@ def test_dcotlap_rejects_bad_input():
 def test_evaluate_keys_and_scaled_values():
     src = ellipsoid()
     tgt = ellipsoid(axes=(1.2, 1.8, 0.7), offset=(4.0, 0.0, 1.0))
-    m = evaluate(src, tgt, (bend(src[0], 0.2), src[1]), n_samples=1000, seed=2)
-    assert set(m) == {"cd", "dcotlap", "cd_x1e2", "dcotlap_x1e3", "n_samples", "seed",
+    m = evaluate(*src, *tgt, bend(src[0], 0.2), n_samples=1000, seed=2)
+    assert set(m.as_dict()) == {"cd", "dcotlap", "cd_x1e2", "dcotlap_x1e3", "n_samples", "seed",
                       "part_nonaffinity_median", "part_nonaffinity_worst", "parts",
                       "planarity_mean_deg", "planarity_p95_deg", "symmetry_axis",
                       "symmetry_error"}
     # the bent ellipsoid: one part, not affine; symmetric about x, and the bend (even in
     # x) keeps that symmetry
-    assert m["parts"] == 1 and m["part_nonaffinity_worst"] > 1e-3
-    assert m["symmetry_axis"] == "x" and m["symmetry_error"] < 1e-12
-    assert isinstance(m["cd"], float) and isinstance(m["dcotlap"], float)
-    assert m["cd_x1e2"] == pytest.approx(m["cd"] * 100)
-    assert m["dcotlap_x1e3"] == pytest.approx(m["dcotlap"] * 1000)
-    assert m["n_samples"] == 1000 and m["seed"] == 2
-    assert m["cd"] > 0 and m["dcotlap"] > 0
+    assert m.parts == 1 and m.part_nonaffinity_worst > 1e-3
+    assert m.symmetry_axis == "x" and m.symmetry_error < 1e-12
+    assert isinstance(m.cd, float) and isinstance(m.dcotlap, float)
+    assert m.cd_x1e2 == pytest.approx(m.cd * 100)
+    assert m.dcotlap_x1e3 == pytest.approx(m.dcotlap * 1000)
+    assert m.n_samples == 1000 and m.seed == 2
+    assert m.cd > 0 and m.dcotlap > 0
 
 
 def test_evaluate_target_as_deformed_gives_sampling_resolution_cd():
     src = ellipsoid()
     tgt = ellipsoid(axes=(1.5, 1.0, 0.8), offset=(10.0, -3.0, 2.0))  # same topology
-    m = evaluate(src, tgt, tgt, n_samples=2000)
+    m = evaluate(*src, *tgt, tgt[0], n_samples=2000)
     # same surface in the same frame, sampled with two streams: the resolution only
-    Vt_n = normalize(tgt[0])[0]
-    assert m["cd"] == pytest.approx(chamfer(Vt_n, tgt[1], Vt_n, tgt[1], n_samples=2000), rel=1e-12)
-    assert 0 < m["cd"] < 5e-3
-    assert m["dcotlap"] > 0  # the target is a non-rigid deformation of the source
+    Vt_n = Frame.of(tgt[0]).to_unit(tgt[0])
+    assert m.cd == pytest.approx(chamfer(Vt_n, tgt[1], Vt_n, tgt[1], n_samples=2000),
+                                 rel=1e-12)
+    assert 0 < m.cd < 5e-3
+    assert m.dcotlap > 0  # the target is a non-rigid deformation of the source
 
 
 def test_evaluate_similar_copy_scores_zero_distortion():
@@ -271,78 +272,74 @@ def test_evaluate_similar_copy_scores_zero_distortion():
     # frames normalise it back onto the normalised source
     src = ellipsoid()
     moved = (3.0 * src[0] + [5.0, -2.0, 7.0], src[1])
-    m = evaluate(src, moved, moved, n_samples=2000)
-    assert 0 < m["cd"] < 5e-3  # the sampling resolution only
-    assert m["dcotlap"] <= 1e-20
+    m = evaluate(*src, *moved, moved[0], n_samples=2000)
+    assert 0 < m.cd < 5e-3  # the sampling resolution only
+    assert m.dcotlap <= 1e-20
 
 
 def test_evaluate_pure_translation_has_zero_distortion():
     src = ellipsoid()
     shifted = (src[0] + [0.3, 0.0, 0.0], src[1])
-    m = evaluate(src, src, shifted, n_samples=2000)
-    assert m["dcotlap"] <= 1e-20
+    m = evaluate(*src, *src, shifted[0], n_samples=2000)
+    assert m.dcotlap <= 1e-20
     # CD is computed in the target's frame: the shift is divided by the target's scale
-    _, _, scale = normalize(src[0])
-    assert m["cd"] > 0.5 * (0.3 / scale) ** 2
+    scale = Frame.of(src[0]).scale
+    assert m.cd > 0.5 * (0.3 / scale) ** 2
 
 
 def test_evaluate_uses_target_frame_for_deformed_and_own_frame_for_source():
     src = ellipsoid()
     tgt = ellipsoid(axes=(1.3, 1.7, 0.9), offset=(1.0, 1.0, 1.0))
     dfm = (bend(src[0], 0.2), src[1])
-    base = evaluate(src, tgt, dfm, n_samples=1000)
+    base = evaluate(*src, *tgt, dfm[0], n_samples=1000)
     # moving and scaling the source alone changes nothing (it is normalised on its own)
     src2 = (2.5 * src[0] - 4.0, src[1])
-    again = evaluate(src2, tgt, dfm, n_samples=1000)
-    assert again["cd"] == pytest.approx(base["cd"], rel=1e-12)
-    assert again["dcotlap"] == pytest.approx(base["dcotlap"], rel=1e-9)
+    again = evaluate(*src2, *tgt, dfm[0], n_samples=1000)
+    assert again.cd == pytest.approx(base.cd, rel=1e-12)
+    assert again.dcotlap == pytest.approx(base.dcotlap, rel=1e-9)
     # the same similarity applied to target and deformed changes nothing
     s, t = 7.0, np.array([-2.0, 3.0, 0.5])
     sim = evaluate(
-        src, (s * tgt[0] + t, tgt[1]), (s * dfm[0] + t, dfm[1]), n_samples=1000
+        *src, s * tgt[0] + t, tgt[1], s * dfm[0] + t, n_samples=1000
     )
-    assert sim["cd"] == pytest.approx(base["cd"], rel=1e-9)
-    assert sim["dcotlap"] == pytest.approx(base["dcotlap"], rel=1e-9)
+    assert sim.cd == pytest.approx(base.cd, rel=1e-9)
+    assert sim.dcotlap == pytest.approx(base.dcotlap, rel=1e-9)
     # scaling only the deformed shape changes both figures (it is not renormalised)
-    big = evaluate(src, tgt, (3.0 * dfm[0], dfm[1]), n_samples=1000)
-    assert big["cd"] > 2 * base["cd"] and big["dcotlap"] > base["dcotlap"]
+    big = evaluate(*src, *tgt, 3.0 * dfm[0], n_samples=1000)
+    assert big.cd > 2 * base.cd and big.dcotlap > base.dcotlap
 
 
 def test_evaluate_is_deterministic_and_seeded():
     src = ellipsoid()
     tgt = ellipsoid(axes=(1.2, 1.8, 0.7))
     dfm = (bend(src[0], 0.1), src[1])
-    a = evaluate(src, tgt, dfm, n_samples=1000, seed=11)
-    assert a == evaluate(src, tgt, dfm, n_samples=1000, seed=11)
-    b = evaluate(src, tgt, dfm, n_samples=1000, seed=12)
-    assert a["cd"] != b["cd"] and a["dcotlap"] == b["dcotlap"]
+    a = evaluate(*src, *tgt, dfm[0], n_samples=1000, seed=11)
+    assert a == evaluate(*src, *tgt, dfm[0], n_samples=1000, seed=11)
+    b = evaluate(*src, *tgt, dfm[0], n_samples=1000, seed=12)
+    assert a.cd != b.cd and a.dcotlap == b.dcotlap
 
 
-def test_evaluate_point_cloud_target_and_faceless_deformed():
+def test_evaluate_point_cloud_target():
     src = ellipsoid()
     tgt_mesh = ellipsoid(axes=(1.2, 1.8, 0.7))
     cloud = trimesh.Trimesh(*tgt_mesh, process=False).sample(3000, seed=0)
     dfm = (tgt_mesh[0], src[1])
-    m_cloud = evaluate(src, (cloud, None), dfm, n_samples=3000)
-    assert 0 < m_cloud["cd"] < 0.01  # same surface, different samples
-    with_faces = evaluate(src, tgt_mesh, dfm, n_samples=3000)
-    without = evaluate(src, tgt_mesh, (tgt_mesh[0], None), n_samples=3000)
-    assert with_faces == without  # missing deformed faces default to the source's
+    m_cloud = evaluate(*src, cloud, None, dfm[0], n_samples=3000)
+    assert 0 < m_cloud.cd < 0.01  # same surface, different samples
+    assert evaluate(*src, cloud, np.zeros((0, 3), int), dfm[0], n_samples=3000) == m_cloud
 
 
 def test_evaluate_rejects_bad_input():
     src = ellipsoid()
     tgt = ellipsoid(axes=(1.2, 1.8, 0.7))
     with pytest.raises(InputError, match="vertices"):
-        evaluate(src, tgt, (src[0][:-1], None))
+        evaluate(*src, *tgt, src[0][:-1])
     with pytest.raises(InputError, match="faces"):
-        evaluate((src[0], None), tgt, src)
-    # the deformed shape as bare vertices takes the source's faces, like (V, None)
-    assert evaluate(src, tgt, src[0]) == evaluate(src, tgt, (src[0], None))
+        evaluate(src[0], None, *tgt, src[0])
     with pytest.raises(InputError, match="zero extent"):
-        evaluate(src, (np.ones((4, 3)), None), src)
+        evaluate(*src, np.ones((4, 3)), None, src[0])
     with pytest.raises(InputError, match="NaN"):
-        evaluate(src, tgt, (np.full_like(src[0], np.nan), src[1]))
+        evaluate(*src, *tgt, np.full_like(src[0], np.nan))
 
 
 # -------------------------------------------------------------------- structure

@@ -36,7 +36,7 @@ import numpy as np
 
 from cagekit.batch.collection import SYNTHETIC_PREFIX, Shape, file_hash, find_shapes, load_shape_of
 from cagekit.cage.fitting import fit_cage
-from cagekit.deformation import deform
+from cagekit.deformation import DeformOptions, deform
 from cagekit.errors import CagekitWarning, InputError
 from cagekit.geometry.frame import Frame
 from cagekit.interrupts import sigint_deferred
@@ -237,7 +237,7 @@ def deform_item(source: str, target: str, method: str = "cage", seed: int = 0, c
         The source's cage in its own frame, when known (``cage``); else it is fitted here
         exactly as :func:`cagekit.deform` fits one, and returned for reuse.
     deformer : callable, optional
-        For ``model``: ``deformer(source, target, seed) -> DeformResult``
+        For ``model``: ``deformer(V_src, F_src, V_tgt, F_tgt, seed) -> DeformResult``
         (``cagekit_learn.inference.ModelDeformer``).
     coords : {"mvc", "green"}, default "mvc"
         The coordinates of ``cage`` (:func:`cagekit.deform`'s ``coords``).
@@ -267,7 +267,7 @@ def deform_item(source: str, target: str, method: str = "cage", seed: int = 0, c
     if figures is None:
         out["seconds"] = time.perf_counter() - start
         return out
-    out.update({name: figures[name] for name in _FIGURES})
+    out.update({name: getattr(figures, name) for name in _FIGURES})
     out.update(status="ok", vertices=result.vertices, faces=Fs,
                seconds=time.perf_counter() - start)
     return out
@@ -321,20 +321,20 @@ def _deform_and_score(source, target, method, seed, cage, deformer, out, coords)
     Vs, Fs = _loaded("source", source)
     Vt, Ft = _loaded("target", target)
     if method == "model":
-        result = deformer((Vs, Fs), (Vt, Ft), seed)
+        result = deformer(Vs, Fs, Vt, Ft, seed)
     elif method == "scale":
-        result = deform((Vs, Fs), (Vt, Ft), method="scale")
+        result = deform(Vs, Fs, Vt, Ft, options=DeformOptions(method="scale"))
     elif method == "cage":
         if cage is None:
             t0 = time.perf_counter()
             cage = _fit(Vs, Fs, seed)
             out["cage_seconds"] = time.perf_counter() - t0
-        result = deform((Vs, Fs), (Vt, Ft), cage=cage, seed=seed, check=False,
-                        coords=coords)
+        result = deform(Vs, Fs, Vt, Ft, *cage,
+                        options=DeformOptions(seed=seed, check=False, coords=coords))
         out["cage"] = cage
     else:
         raise InputError(f"unknown method {method!r}; available: {', '.join(METHODS)}")
-    figures = evaluate((Vs, Fs), (Vt, Ft), (result.vertices, Fs), seed=seed,
+    figures = evaluate(Vs, Fs, Vt, Ft, result.vertices, seed=seed,
                        frames=(result.source_frame, result.target_frame))
     return figures, result, Fs
 
@@ -350,8 +350,8 @@ def _fit(Vs, Fs, seed):
     """The cage :func:`cagekit.deform` would fit, in the source's own frame."""
 
     frame = Frame.of(Vs, name="the source")
-    cage_n, cage_f = fit_cage(frame.to_unit(Vs), Fs, faces=CAGE_FACES, seed=seed,
-                              samples=5000)
+    cage_n, cage_f, _ = fit_cage(frame.to_unit(Vs), Fs, faces=CAGE_FACES, seed=seed,
+                                 samples=5000, report=False)
     return frame.to_world(cage_n), cage_f
 
 

@@ -21,7 +21,11 @@ check of :func:`cage_report`. See docs/architecture.md.
 
 from __future__ import annotations
 
+from dataclasses import asdict, dataclass
+from typing import NamedTuple
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from cagekit.cage import check_cage, face_components, self_intersecting_faces, signed_volume
 from cagekit.cage.shapes import icosphere_cage
@@ -30,8 +34,9 @@ from cagekit.geometry import as_shape, face_areas
 from cagekit.geometry.frame import Frame
 from cagekit.geometry.sampling import sample_surface
 
-__all__ = ["fit_cage", "cage_report", "template_cage", "wrap_input", "check_face_budget",
-           "CageFitError", "METHODS", "MIN_FACES", "MAX_FACES"]
+__all__ = ["fit_cage", "FittedCage", "cage_report", "CageReport", "template_cage",
+           "wrap_input", "check_face_budget", "CageFitError", "METHODS", "MIN_FACES",
+           "MAX_FACES"]
 
 METHODS = ("wrap", "template")
 
@@ -564,8 +569,63 @@ def _shape_volume(v, f):
         return 0.0, "none"
 
 
-def cage_report(shape_v, shape_f, cage_v, cage_f, faces: int | None = None,
-                components: int = 1, samples: int = 20000, seed: int = 0) -> dict:
+@dataclass(frozen=True)
+class CageReport:
+    """Every guarantee of a fitted cage and its tightness (:func:`cage_report`).
+
+    Attributes
+    ----------
+    ok : bool
+        Every check passed.
+    checks : dict of str to bool
+        ``closed_manifold``, ``outward``, ``components``, ``no_self_intersection``,
+        ``encloses_vertices``, ``encloses_samples``, ``no_cut``, ``face_count``.
+    faces, vertices : int
+        The cage's counts.
+    volume_ratio : float or None
+        Cage volume over the shape's, or over its convex hull's for open shapes and clouds
+        (``volume_reference`` says which); None when that volume is 0.
+    volume_reference : {"shape", "convex hull", "none"}
+    max_distance : float
+        Largest distance from the cage's surface to the shape, over the shape's
+        bounding-box diagonal.
+    """
+
+    ok: bool
+    checks: dict[str, bool]
+    faces: int
+    vertices: int
+    volume_ratio: float | None
+    volume_reference: str
+    max_distance: float
+
+    def as_dict(self) -> dict:
+        """The report as a plain dict (for JSON), in field order."""
+        return asdict(self)
+
+
+class FittedCage(NamedTuple):
+    """What :func:`fit_cage` returns; it unpacks as ``cage_v, cage_f, report``.
+
+    Attributes
+    ----------
+    vertices : (k, 3) float64
+        In the shape's frame and units.
+    faces : (c, 3) int64
+        Closed, 2-manifold, outward, not self-intersecting.
+    report : CageReport or None
+        The checks the fit has just passed and the cage's tightness; None when
+        ``fit_cage(..., report=False)``.
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    report: CageReport | None
+
+
+def cage_report(shape_v: ArrayLike, shape_f: ArrayLike | None, cage_v: ArrayLike,
+                cage_f: ArrayLike, faces: int | None = None, components: int = 1,
+                samples: int = 20000, seed: int = 0) -> CageReport:
     """Every guarantee of a fitted cage and its tightness.
 
     Parameters
@@ -592,13 +652,7 @@ def cage_report(shape_v, shape_f, cage_v, cage_f, faces: int | None = None,
 
     Returns
     -------
-    dict
-        ``checks``: name -> bool (closed_manifold, outward, components,
-        no_self_intersection, encloses_vertices, encloses_samples, no_cut, face_count);
-        ``ok``: all of them; ``faces``, ``vertices``; ``volume_ratio`` (cage volume over the
-        shape's, or over its convex hull's for open shapes and clouds: ``volume_reference``
-        says which) and ``max_distance`` (largest distance from the cage surface to the
-        shape, over the shape's bounding-box diagonal).
+    CageReport
     """
     if faces is not None:
         faces = check_face_budget(faces)
@@ -617,7 +671,7 @@ def cage_report(shape_v, shape_f, cage_v, cage_f, faces: int | None = None,
 
 
 def _report(checks, vn, f, cvn, cf, seed):
-    """:func:`cage_report`'s dict from the checks and the cage (unit-diagonal frame)."""
+    """:func:`cage_report`'s result from the checks and the cage (unit-diagonal frame)."""
     import igl
     from scipy.spatial import cKDTree
 
@@ -629,24 +683,22 @@ def _report(checks, vn, f, cvn, cf, seed):
         dist = np.sqrt(igl.point_mesh_squared_distance(cage_pts, vn, f)[0])
     else:
         dist = cKDTree(vn).query(cage_pts)[0]
-    return {
-        "ok": all(checks.values()),
-        "checks": checks,
-        "faces": int(len(cf)),
-        "vertices": int(len(cvn)),
-        "volume_ratio": float(cage_vol / shape_vol) if shape_vol > 0 else None,
-        "volume_reference": reference,
-        "max_distance": float(dist.max()),
-    }
+    return CageReport(
+        ok=all(checks.values()), checks=dict(checks), faces=int(len(cf)),
+        vertices=int(len(cvn)),
+        volume_ratio=float(cage_vol / shape_vol) if shape_vol > 0 else None,
+        volume_reference=reference, max_distance=float(dist.max()))
 
 
 # ----------------------------------------------------------------------------- main
 
 
-def fit_cage(shape_v, shape_f=None, faces: int = 200, method: str = "wrap", *,
-             components: int = 1, margin: float = 0.001, samples: int = 20000, seed: int = 0,
-             offsets=(0.004, 0.008, 0.016, 0.03, 0.06), alphas=None,
-             max_repairs: int = 30, return_report: bool = False):
+def fit_cage(shape_v: ArrayLike, shape_f: ArrayLike | None = None, faces: int = 200,
+             method: str = "wrap", *, components: int = 1, margin: float = 0.001,
+             samples: int = 20000, seed: int = 0,
+             offsets: tuple[float, ...] = (0.004, 0.008, 0.016, 0.03, 0.06),
+             alphas: tuple[float, ...] | None = None, max_repairs: int = 30,
+             report: bool = True) -> FittedCage:
     """Build a cage around a mesh or point cloud, verified before it is returned.
 
     Parameters
@@ -674,18 +726,16 @@ def fit_cage(shape_v, shape_f=None, faces: int = 200, method: str = "wrap", *,
         :func:`default_alphas` of ``faces``.
     max_repairs : int, default 30
         Rounds of the outward repair after decimation (``wrap``).
-    return_report : bool, default False
-        Also return :func:`cage_report`'s dict for the cage, from the checks the fit has
-        just passed (``face_count`` is judged against ``faces``).
+    report : bool, default True
+        Measure the cage's tightness for :class:`CageReport` from the checks the fit has
+        just passed (``face_count`` is judged against ``faces``); False leaves
+        ``report`` None and saves that measurement (:func:`cagekit.deform` does).
 
     Returns
     -------
-    cage_v : (k, 3) float64
-        In the shape's frame and units.
-    cage_f : (c, 3) int64
-        Closed, 2-manifold, outward, not self-intersecting, ``c <= faces``.
-    report : dict
-        Only when ``return_report`` is True; see :func:`cage_report`.
+    FittedCage
+        ``(vertices, faces, report)``: the cage in the shape's frame and units, with
+        ``len(faces) <= faces``.
 
     Raises
     ------
@@ -700,9 +750,9 @@ def fit_cage(shape_v, shape_f=None, faces: int = 200, method: str = "wrap", *,
     --------
     >>> from cagekit.cage.shapes import box_cage
     >>> v, f = box_cage(3, half_extent=(1.0, 0.5, 0.25))
-    >>> cv, cf = fit_cage(v, f, faces=100)
-    >>> len(cf) <= 100
-    True
+    >>> cage = fit_cage(v, f, faces=100)
+    >>> len(cage.faces) <= 100, cage.report.ok
+    (True, True)
     """
     if method not in METHODS:
         raise InputError(f"unknown cage method {method!r}; available: {', '.join(METHODS)}")
@@ -718,18 +768,16 @@ def fit_cage(shape_v, shape_f=None, faces: int = 200, method: str = "wrap", *,
         # a wider margin when input edges cross the cage between samples
         for grow in (1, 4, 16):
             cvn, cf = _fit_template(vn, pts, margin * grow)
-            report = _checks(cvn, cf, vn, f, pts, faces, 1)
-            if all(report.values()):
+            checks = _checks(cvn, cf, vn, f, pts, faces, 1)
+            if all(checks.values()):
                 break
         else:
-            failing = ", ".join(k for k, ok in report.items() if not ok)
+            failing = ", ".join(k for k, ok in checks.items() if not ok)
             raise CageFitError(f"the template cage fails: {failing}")
     else:
         if alphas is None:
             alphas = default_alphas(faces)
-        cvn, cf, report = _fit_wrap(vn, f, faces, pts, margin, offsets, alphas,
+        cvn, cf, checks = _fit_wrap(vn, f, faces, pts, margin, offsets, alphas,
                                     max_repairs, components)
-    cage_v = frame.to_world(cvn)
-    if return_report:
-        return cage_v, cf, _report(report, vn, f, cvn, cf, seed)
-    return cage_v, cf
+    return FittedCage(frame.to_world(cvn), cf,
+                      _report(checks, vn, f, cvn, cf, seed) if report else None)

@@ -57,8 +57,8 @@ def _deform_figures(source, target, result):
     from cagekit.metrics import chamfer, evaluate
 
     if len(source[1]):
-        return evaluate(source, target, (result.vertices, source[1]),
-                        frames=(result.source_frame, result.target_frame))
+        return evaluate(*source, *target, result.vertices,
+                        frames=(result.source_frame, result.target_frame)).as_dict()
     ft = result.target_frame
     cd = chamfer(ft.to_unit(result.vertices), None, ft.to_unit(target[0]), target[1])
     return {"cd": cd, "dcotlap": None, "cd_x1e2": cd * 1e2, "dcotlap_x1e3": None}
@@ -184,16 +184,18 @@ def deform(ctx, source, target, out, method, cage_path, faces, save_cage, symmet
     if model_path and target_kind != "full":
         raise click.UsageError("--target-kind partial applies to the per-pair optimisation "
                                "only, not to --model")
+    from cagekit.deformation import DeformOptions
+
     model = _load_model(model_path) if model_path else None
     src, tgt, cage, pairs, write = _load_inputs(source, target, out, cage_path, landmarks)
-    options = {"symmetry": None if symmetry == "none" else symmetry,
-               "weights": weights or None, "reference": reference, "coords": coords}
+    options = DeformOptions(method=method, symmetry=None if symmetry == "none" else symmetry,
+                            weights=weights or None, reference=reference, coords=coords,
+                            faces=faces, seed=seed, check=False, target_kind=target_kind)
     with progress_bar("deform", "eval",
                       enabled=progress_enabled() and method == "cage"
                       and (model is None or refine)) as bar:
         try:
-            result = _run(src, tgt, cage, pairs, model, method, faces, refine, seed,
-                          options, bar_callback(bar), target_kind)
+            result = _run(src, tgt, cage, pairs, model, refine, options, bar_callback(bar))
         except InputError as exc:
             raise _blamed(exc, source, target, cage_path, landmarks) from None
     write(out, result.vertices, result.faces)
@@ -254,8 +256,7 @@ def _load_inputs(source, target, out, cage_path, landmarks):
     return src, tgt, cage, pairs, write
 
 
-def _run(src, tgt, cage, pairs, model, method, faces, refine, seed, options, progress,
-         target_kind="full"):
+def _run(src, tgt, cage, pairs, model, refine, options, progress):
     """The deformation: per-pair (``cagekit.deform``) or by the model."""
     import warnings
 
@@ -266,14 +267,13 @@ def _run(src, tgt, cage, pairs, model, method, faces, refine, seed, options, pro
         from cagekit_learn.inference import deform_with_model
 
         net, points = model
-        return deform_with_model(net, src, tgt, points=points, seed=seed, refine=refine,
-                                 **({**options, "progress": progress} if refine else {}))
+        return deform_with_model(net, *src, *tgt, points=points, seed=options.seed,
+                                 refine=refine, options=options, progress=progress)
     # a given cage was checked by _load_inputs, with its file name in the messages
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", OutsideCageWarning)
-        return deform(src, tgt, cage, method=method, landmarks=pairs, faces=faces,
-                      seed=seed, check=False, progress=progress, target_kind=target_kind,
-                      **options)
+        return deform(*src, *tgt, *((None, None) if cage is None else cage), options,
+                      landmarks=pairs, progress=progress)
 
 
 def _blamed(exc, source, target, cage_path, landmarks):

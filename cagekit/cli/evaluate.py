@@ -59,7 +59,7 @@ def eval_(ctx, source, target, deformed, samples, seed, as_json):
             raise InputError("all its points coincide (zero extent); nothing to compare",
                              path)
     try:
-        result = evaluate(src, tgt, dfm, n_samples=samples, seed=seed)
+        result = evaluate(*src, *tgt, dfm[0], n_samples=samples, seed=seed).as_dict()
     except InputError as exc:
         if exc.path is None:  # name the file(s) the message is about
             low = exc.problem.lower()

@@ -76,7 +76,7 @@ def fit_cage(ctx, mesh, out, faces, method, components, preview, up, seed, as_js
     t0 = time.perf_counter()
     try:
         cage_v, cage_f, report = fit(V, F, faces=faces, method=method,
-                                     components=components, seed=seed, return_report=True)
+                                     components=components, seed=seed)
     except InputError as exc:
         raise InputError(exc.problem, mesh) from None
     seconds = time.perf_counter() - t0
@@ -89,10 +89,10 @@ def fit_cage(ctx, mesh, out, faces, method, components, preview, up, seed, as_js
                       views=((20, -60), (20, 120)), up=up)
     if as_json:
         emit_json({"input": mesh, "output": out, "method": method, "seconds": seconds,
-                    **report})
+                    **report.as_dict()})
     else:
-        ratio = report["volume_ratio"]
+        ratio = report.volume_ratio
         ratio_text = "n/a" if ratio is None else f"{ratio:.3f}"
-        click.echo(f"wrote {out}: {report['faces']}-face cage, every check passed; volume "
-                   f"{ratio_text} x the {report['volume_reference']}'s, largest distance "
-                   f"{report['max_distance']:.4f} x the diagonal ({seconds:.2f} s)")
+        click.echo(f"wrote {out}: {report.faces}-face cage, every check passed; volume "
+                   f"{ratio_text} x the {report.volume_reference}'s, largest distance "
+                   f"{report.max_distance:.4f} x the diagonal ({seconds:.2f} s)")

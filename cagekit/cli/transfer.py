@@ -195,7 +195,7 @@ def _load(template, template_cage, template_landmarks, character, character_land
         from cagekit.cage.fitting import fit_cage
 
         try:
-            cage_v, cage_f = fit_cage(Vt, Ft, faces=cage_faces, seed=seed)
+            cage_v, cage_f, _ = fit_cage(Vt, Ft, faces=cage_faces, seed=seed)
         except InputError as exc:
             raise InputError(f"cannot fit a cage to the template: {exc.problem}",
                              template) from None
@@ -228,8 +228,8 @@ def _transfer_poses(char, template, template_cage, pose_paths, pose_meshes, mode
             t0 = time.perf_counter()
             try:
                 if model is None:
-                    deformed = dt.template_cage_classical((Vt, Ft), (cage_v, cage_f),
-                                                          (Vp, Fp), seed=seed, fitter=fitter)
+                    deformed = dt.template_cage_classical(Vt, Ft, cage_v, cage_f,
+                                                          Vp, Fp, seed=seed, fitter=fitter)
                 else:
                     deformed = template_cage_learned(model, Vt, cage_v, (Vp, Fp))
                 X = dt.transfer(char, deformed, rule, root=root)

@@ -4,14 +4,21 @@
 - :mod:`~cagekit.deformation.problem`: one pair's energy over the cage
   (:class:`CageProblem`) and :func:`solve`;
 - :mod:`~cagekit.deformation.solver`: L-BFGS (nlopt) keeping the best point, Ctrl-C safe;
+- :mod:`~cagekit.deformation.options`: :class:`DeformOptions`, checked in one place;
 - :mod:`~cagekit.deformation.api`: :func:`deform` and :class:`DeformResult`.
 """
 
-from cagekit.deformation.api import COORDS, METHODS, TARGET_KINDS, DeformResult, deform
-from cagekit.deformation.problem import (
-    DEFAULT_WEIGHTS,
+from cagekit.deformation.api import DeformResult, deform
+from cagekit.deformation.options import (
+    COORDS,
+    METHODS,
     SAMPLES,
     SHAPE_POINTS,
+    TARGET_KINDS,
+    DeformOptions,
+)
+from cagekit.deformation.problem import (
+    DEFAULT_WEIGHTS,
     CageEnergy,
     CageProblem,
     CageSolution,
@@ -19,5 +26,5 @@ from cagekit.deformation.problem import (
 )
 
 __all__ = ["COORDS", "CageEnergy", "CageProblem", "CageSolution", "DEFAULT_WEIGHTS",
-           "DeformResult", "METHODS", "SAMPLES", "SHAPE_POINTS", "TARGET_KINDS", "deform",
-           "solve"]
+           "DeformOptions", "DeformResult", "METHODS", "SAMPLES", "SHAPE_POINTS",
+           "TARGET_KINDS", "deform", "solve"]

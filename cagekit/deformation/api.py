@@ -7,22 +7,21 @@ The energy, its terms and the solver are :mod:`cagekit.deformation.problem`,
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from cagekit.cage import check_cage
 from cagekit.cage.fitting import fit_cage
 from cagekit.coords.binding import warn_outside
+from cagekit.deformation.options import COORDS, METHODS, TARGET_KINDS, DeformOptions
 from cagekit.deformation.problem import (
     LANDMARK_MARGIN,
-    SAMPLES,
-    SHAPE_POINTS,
     CageProblem,
     CageSolution,
     box_factors,
-    check_choices,
-    check_counts,
     solve,
     term_weights,
 )
@@ -30,13 +29,7 @@ from cagekit.errors import InputError
 from cagekit.geometry import as_shape, as_vertices
 from cagekit.geometry.frame import Frame
 
-__all__ = ["COORDS", "DeformResult", "METHODS", "TARGET_KINDS", "deform"]
-
-METHODS = ("cage", "scale", "nricp")
-#: the coordinates the energy takes (Green's through their faces' terms, exactly)
-COORDS = ("mvc", "green")
-TARGET_KINDS = ("full", "partial")
-
+__all__ = ["COORDS", "DeformOptions", "DeformResult", "METHODS", "TARGET_KINDS", "deform"]
 
 @dataclass
 class DeformResult:
@@ -145,86 +138,49 @@ def _nricp(Vs_box, Fs, Vt_n, Ft):
                          ) from None
 
 
-def deform(source, target, cage=None, *, method: str = "cage", symmetry: str | None = None,
-           landmarks=None, weights: dict | None = None, faces: int = 200,
-           samples: int = SAMPLES, shape_points: int = SHAPE_POINTS, max_evaluations: int = 60,
-           tolerance: float = 1e-7, reference: str = "aligned", coords: str = "mvc",
-           seed: int = 0, progress=None, initial_cage=None, check: bool = True,
-           target_kind: str = "full") -> DeformResult:
+def deform(V_src: ArrayLike, F_src: ArrayLike | None, V_tgt: ArrayLike,
+           F_tgt: ArrayLike | None = None, cage_v: ArrayLike | None = None,
+           cage_f: ArrayLike | None = None, options: DeformOptions | None = None, *,
+           landmarks: tuple[ArrayLike, ArrayLike] | None = None,
+           initial_cage: ArrayLike | None = None,
+           progress: Callable[[int, int], object] | None = None) -> DeformResult:
     """Deform a source so it takes the shape of a target, keeping its detail.
 
     Parameters
     ----------
-    source : (V, F) pair, trimesh object, or (n, 3) array
-        The shape to deform, ``V`` (n, 3) float, ``F`` (m, 3) int; no faces (or a bare
-        array) for a point cloud, whose points are deformed.
-    target : (V, F) pair, trimesh object, or (t, 3) array
-        The shape to match: a mesh, or a point cloud (noisy or coarse; partial ones
-        squash the source, see the module docstring).
-    cage : (cage_v, cage_f) pair, optional
+    V_src : (n, 3) array_like of float
+        The shape to deform.
+    F_src : (m, 3) array_like of int, or None
+        Its faces; None or empty for a point cloud, whose points are deformed.
+    V_tgt : (t, 3) array_like of float
+        The shape to match.
+    F_tgt : (p, 3) array_like of int, or None
+        Its faces; None or empty for a point cloud (noisy or coarse; partial ones squash
+        the source, see the module docstring).
+    cage_v, cage_f : (k, 3) array_like of float and (c, 3) array_like of int, optional
         The source's cage in the source's frame: closed, 2-manifold, free of
-        self-intersection (refused otherwise, see ``check``); a cage that leaves part of the
-        source outside is used with an :class:`~cagekit.errors.OutsideCageWarning` (those
-        points are extrapolated). When None,
-        :func:`cagekit.fit_cage` builds one with ``faces`` faces, checked against 5,000
-        surface samples instead of fit-cage's 20,000 (faster; the coordinates are
-        defined outside the cage too, so a sample a hair outside does no harm).
-    method : {"cage", "scale", "nricp"}, default "cage"
-        ``cage``: the energy above, minimised over the cage. ``scale``: the source's
-        bounding box mapped onto the target's (the paper's simplest baseline). ``nricp``:
-        ``trimesh.registration.nricp_amberg`` with its defaults, started from the
-        box-aligned source in the paper's frame (the same start as ``cage``).
-    symmetry : {"x", "y", "z"} or None
-        Axis normal to the source's plane of symmetry; adds the symmetry term.
+        self-intersection (refused otherwise, see ``DeformOptions.check``); a cage that
+        leaves part of the source outside is used with an
+        :class:`~cagekit.errors.OutsideCageWarning` (those points are extrapolated). When
+        None, :func:`cagekit.fit_cage` builds one with ``options.faces`` faces, checked
+        against 5,000 surface samples instead of fit-cage's 20,000 (faster; the
+        coordinates are defined outside the cage too, so a sample a hair outside does no
+        harm).
+    options : DeformOptions, optional
+        The method, the energy's terms and the solver's budget (default:
+        ``DeformOptions()``).
     landmarks : (source points (l, 3), target points (l, 3)), optional
         Corresponding points, each in its own shape's frame; the alignment term becomes
         their mean squared distance.
-    weights : dict, optional
-        Overrides of :data:`DEFAULT_WEIGHTS` (``chamfer``, ``landmarks``, ``p2f``,
-        ``normal``, ``symmetry``, ``cage``, ``parts``, ``detail``); ``result.weights``
-        holds those used.
-    faces : int, default 200
-        Face budget of the fitted cage when ``cage`` is None.
-    samples : int, default 2000
-        Samples of each surface for the Chamfer and symmetry terms.
-    shape_points : int, default 250
-        Vertices whose one-ring planes the shape terms use.
-    max_evaluations : int, default 60
-        Energy evaluations of L-BFGS.
-    tolerance : float, default 1e-7
-        Relative change of the energy that stops L-BFGS.
-    reference : {"aligned", "source"}, default "aligned"
-        What the shape terms and the cage regulariser compare with: the box-aligned
-        source and cage after the coarse stage (the stretch is free: a source deformed
-        onto a stretched copy of itself comes back up to sampling noise and parts keep
-        their straight lines), or the source and its cage as given (the paper's choice: any stretch
-        costs, so dCotLap, which charges for stretch, is lower, but parts bend where the
-        target's proportions differ; the cage weight then defaults to 1, not 0.3).
-        docs/benchmarks.md ("Per-pair deformation") has both on 20 pairs.
-    coords : {"mvc", "green"}, default "mvc"
-        The coordinates that bind the source to its cage (:func:`cagekit.bind`); with
-        ``"green"`` the energy's gradient goes through the faces' normals and stretch
-        factors exactly.
-    seed : int, default 0
+    initial_cage : (k, 3) array_like of float, optional
+        Where the optimisation starts: a deformed position of the cage's vertices in the
+        target's frame and units (for example a learned prediction; ``cagekit deform
+        --model --refine`` refines one in the unit frames with :class:`CageProblem` and
+        :func:`solve`). Default: the box-aligned cage. Needs the cage; the references of
+        the shape and cage terms are unchanged.
     progress : callable, optional
         Called as ``progress(evaluations, max_evaluations)`` after each energy
         evaluation of ``cage`` (the command line moves a progress bar with it).
-    initial_cage : (k, 3) array_like of float, optional
-        Where the optimisation starts: a deformed position of ``cage``'s vertices in the
-        target's frame and units (for example a learned prediction; ``cagekit deform
-        --model --refine`` refines one in the unit frames with :class:`CageProblem` and
-        :func:`solve`). Default: the box-aligned cage. Needs ``cage``; the references of
-        the shape and cage terms are unchanged.
-    check : bool, default True
-        Refuse a given ``cage`` that intersects itself (as :func:`cagekit.bind`); False
-        skips that test (a network's predicted cage, which may fold).
-    target_kind : {"full", "partial"}, default "full"
-        ``"partial"``: the target is a scan seen from one side; method ``cage`` aligns
-        with :func:`cagekit.deformation.terms.partial_chamfer_loss` (every scanned point onto the
-        source, the source onto the scan at a tenth of the weight), so the source's
-        unseen side is not squashed onto the seen one; every method's box alignment
-        keeps each axis's stretch at least the median of the three
-        (:func:`cagekit.geometry.alignment.partial_box_scale`: the scan is shallow along the view).
 
     Returns
     -------
@@ -233,71 +189,69 @@ def deform(source, target, cage=None, *, method: str = "cage", symmetry: str | N
     Raises
     ------
     InputError
-        Bad shapes, an unknown method, term or axis, landmark counts that differ, a
+        Bad shapes, a cage given without its faces (or faces without vertices), bad
+        landmarks, weights for terms that are off, landmark counts that differ, a
         point-cloud source with ``nricp``.
 
     Examples
     --------
     >>> from cagekit.cage.shapes import box_cage
     >>> V, F = box_cage(4, half_extent=(1.0, 0.5, 0.5))
-    >>> result = deform((V, F), (V * [2.0, 1.0, 1.0], F), method="scale")
+    >>> result = deform(V, F, V * [2.0, 1.0, 1.0], F, options=DeformOptions(method="scale"))
     >>> np.allclose(result.vertices, V * [2.0, 1.0, 1.0])
     True
     """
     start = time.perf_counter()
-    if method not in METHODS:
-        raise InputError(f"unknown method {method!r}; available: {', '.join(METHODS)}")
-    check_choices(symmetry, reference)
+    options = DeformOptions() if options is None else options
+    if not isinstance(options, DeformOptions):
+        raise InputError(f"options must be DeformOptions, got {type(options).__name__}")
+    method = options.method
+    if (cage_v is None) != (cage_f is None):
+        raise InputError("a cage needs both its vertices and its faces (cage_v, cage_f)")
     if initial_cage is not None and method != "cage":
         raise InputError("initial_cage applies to method cage only")
-    if initial_cage is not None and cage is None:
-        raise InputError("initial_cage needs the cage it deforms (cage=...)")
-    if coords not in COORDS:
-        raise InputError(f"deform takes coords {', '.join(COORDS)}, got {coords!r}")
-    term_weights(weights, landmarks, symmetry, reference)  # refuse bad weights before any work
-    check_counts({"samples": samples, "shape_points": shape_points,
-                   "max_evaluations": max_evaluations})
-    Vs, Fs = as_shape(source, name="source")
-    Vt, Ft = as_shape(target, name="target")
+    if initial_cage is not None and cage_v is None:
+        raise InputError("initial_cage needs the cage it deforms (cage_v, cage_f)")
+    # refuse bad weights before any work
+    term_weights(options.weights, landmarks, options.symmetry, options.reference)
+    Vs, Fs = as_shape((as_vertices(V_src, "the source"), F_src), name="source")
+    Vt, Ft = as_shape((as_vertices(V_tgt, "the target"), F_tgt), name="target")
     fs, ft = Frame.of(Vs, name="the source"), Frame.of(Vt, name="the target")
     Vs_n, Vt_n = fs.to_unit(Vs), ft.to_unit(Vt)
     result = DeformResult(vertices=Vs, faces=Fs, method=method, source_frame=fs,
                           target_frame=ft)
-    if target_kind not in TARGET_KINDS:
-        raise InputError(f"target_kind must be full or partial, got {target_kind!r}")
     if method == "scale":
-        result.vertices = ft.to_world(Vs_n * box_factors(Vs_n, Vt_n, target_kind))
+        result.vertices = ft.to_world(Vs_n * box_factors(Vs_n, Vt_n, options.target_kind))
     elif method == "nricp":
-        result.vertices = ft.to_world(_nricp(Vs_n * box_factors(Vs_n, Vt_n, target_kind),
-                                             Fs, Vt_n, Ft))
+        start_n = Vs_n * box_factors(Vs_n, Vt_n, options.target_kind)
+        result.vertices = ft.to_world(_nricp(start_n, Fs, Vt_n, Ft))
     else:
-        lm = _landmarks_in_frames(landmarks, fs, ft)
-        if cage is None:
-
-            cage_n, cage_f = fit_cage(Vs_n, Fs, faces=faces, seed=seed, samples=5000)
-        else:
-            try:
-                cage_v, cage_f = cage
-            except (TypeError, ValueError):
-                raise InputError("cage must be a (vertices, faces) pair") from None
-            cage_n = fs.to_unit(as_vertices(cage_v, "cage vertices"))
-            cage_f = check_cage(cage_n, cage_f, intersections=check)
-            warn_outside(Vs_n, cage_n, cage_f, shape="the source", cage="the given cage")
+        cage = _unit_cage(Vs_n, Fs, cage_v, cage_f, fs, options)
         C_start = None
         if initial_cage is not None:
             C_start = ft.to_unit(as_vertices(initial_cage, "initial cage vertices"))
-            if C_start.shape != cage_n.shape:  # before any sampling or binding
+            if C_start.shape != cage[0].shape:  # before any sampling or binding
                 raise InputError(f"initial cage has {len(C_start)} vertices, the cage "
-                                 f"{len(cage_n)}")
-        problem = CageProblem.create(
-            (Vs_n, Fs), (Vt_n, Ft), (cage_n, cage_f), symmetry=symmetry,
-            landmarks=None if lm[0] is None else lm, weights=weights, samples=samples,
-            shape_points=shape_points, reference=reference, coords=coords, seed=seed,
-            target_kind=target_kind)
-        solution = solve(problem, C_start, max_evaluations=max_evaluations,
-                         tolerance=tolerance, progress=progress)
+                                 f"{len(cage[0])}")
+        lm = _landmarks_in_frames(landmarks, fs, ft)
+        problem = CageProblem.create(Vs_n, Fs, Vt_n, Ft, *cage, options,
+                                     landmarks=None if lm[0] is None else lm)
+        solution = solve(problem, C_start, max_evaluations=options.max_evaluations,
+                         tolerance=options.tolerance, progress=progress)
         result.set_solution(problem, solution)
     if not np.isfinite(result.vertices).all():
         raise FloatingPointError(f"method {method} produced NaN or inf positions")
     result.seconds = time.perf_counter() - start
     return result
+
+
+def _unit_cage(Vs_n, Fs, cage_v, cage_f, source_frame, options):
+    """The source's cage in its unit frame: the given one checked, or a fitted one."""
+    if cage_v is None:
+        fitted = fit_cage(Vs_n, Fs, faces=options.faces, seed=options.seed, samples=5000,
+                          report=False)
+        return fitted.vertices, fitted.faces
+    cage_n = source_frame.to_unit(as_vertices(cage_v, "cage vertices"))
+    cage_f = check_cage(cage_n, cage_f, intersections=options.check)
+    warn_outside(Vs_n, cage_n, cage_f, shape="the source", cage="the given cage")
+    return cage_n, cage_f

@@ -37,15 +37,16 @@ from cagekit.cage import vertex_components
 from cagekit.coords import bind
 from cagekit.coords.green import FaceTerms
 from cagekit.deformation import terms as losses
+from cagekit.deformation.options import DeformOptions
 from cagekit.deformation.solver import minimise
 from cagekit.errors import InputError
 from cagekit.geometry import cotangent_laplacian, surface_laplacian, vertex_neighborhoods
 from cagekit.geometry.alignment import box_scale, partial_box_scale
-from cagekit.geometry.sampling import subset, surface_samples
+from cagekit.geometry.sampling import sample_surface, subset
 from cagekit.metrics import MIN_PART_VERTICES
 
 __all__ = ["CageEnergy", "CageProblem", "CageSolution", "DEFAULT_WEIGHTS", "box_factors",
-           "check_choices", "check_counts", "solve", "term_weights"]
+           "solve", "term_weights"]
 
 #: weight of the part-affinity term (:func:`cagekit.deformation.terms.part_affinity_loss`)
 #: on sources of two or more parts (connected components of 30 vertices or more); chosen on real
@@ -54,7 +55,6 @@ PARTS_WEIGHT = 300.0
 #: weight of the detail term (:func:`cagekit.deformation.terms.detail_loss`, the change of the
 #: source's own cotangent Laplacian coordinates); chosen on real furniture pairs
 DETAIL_WEIGHT = 1.0
-REFERENCES = ("source", "aligned")
 DEFAULT_WEIGHTS = {
     "chamfer": 1.0,
     "landmarks": 1.0,
@@ -65,13 +65,6 @@ DEFAULT_WEIGHTS = {
     "parts": PARTS_WEIGHT,
     "detail": DETAIL_WEIGHT,
 }
-#: samples of each surface (Chamfer) and vertices of the shape terms. On 39 real furniture
-#: pairs 250 shape vertices gave the figures of 500 in 0.8 of the time; 1,000 samples
-#: did too on those pairs, but doubled the error on a scaled copy of the source (1.4% of
-#: its size against 0.7%: Chamfer's sampling noise), so 2,000 are kept
-#: (docs/benchmarks.md, "Per-pair deformation")
-SAMPLES = 2000
-SHAPE_POINTS = 250
 #: the cage weight's default with ``reference="source"``
 SOURCE_REFERENCE_CAGE_WEIGHT = 1.0
 #: landmarks may lie this far outside their shape's box (unit frame: the box fills
@@ -228,20 +221,6 @@ def term_weights(user, landmarks, symmetry, reference):
     return weights
 
 
-def check_choices(symmetry, reference):
-    if reference not in REFERENCES:
-        raise InputError(f"reference must be one of {', '.join(REFERENCES)}, got "
-                         f"{reference!r}")
-    if symmetry is not None and symmetry not in losses.AXES:
-        raise InputError(f"symmetry must be x, y, z or None, got {symmetry!r}")
-
-
-def check_counts(counts):
-    for name, value in counts.items():
-        if int(value) < 1:
-            raise InputError(f"{name} must be at least 1, got {value}")
-
-
 def _shape_rows(Vs_n, Fs, shape_points, rng):
     """Rows (own vertex, neighbourhood) of the shape terms, compacted to the points used."""
     nb = vertex_neighborhoods(Vs_n, Fs, k=16)
@@ -285,9 +264,9 @@ def _detail_term(Vs_n, Fs, W_vertices):
 
 
 def _samples_of(role, V, F, n, seed):
-    """``surface_samples``, its errors naming the role (the command line blames the file)."""
+    """``sample_surface``, its errors naming the role (the command line blames the file)."""
     try:
-        return surface_samples(V, F, n, seed=seed)
+        return sample_surface(V, F, n, seed=seed)
     except InputError as exc:
         raise InputError(f"the {role}: {exc.problem}") from None
 
@@ -325,33 +304,35 @@ class CageProblem:
         return self.W_vertices @ self.energy.lift(C)
 
     @classmethod
-    def create(cls, source, target, cage, *, symmetry=None, landmarks=None, weights=None,
-               samples=SAMPLES, shape_points=SHAPE_POINTS, reference="aligned", coords="mvc",
-               seed=0, target_kind="full") -> CageProblem:
+    def create(cls, Vs_n: np.ndarray, Fs: np.ndarray, Vt_n: np.ndarray, Ft: np.ndarray,
+               cage_v: np.ndarray, cage_f: np.ndarray, options: DeformOptions, *,
+               landmarks: tuple[np.ndarray, np.ndarray] | None = None) -> CageProblem:
         """Sample, bind and set up the energy of one pair (all arrays in unit frames).
 
         Parameters
         ----------
-        source, target : (V, F) pairs of (n, 3) float64 and (m, 3) int64
-            Normalised on their own (``F`` empty for a point cloud).
-        cage : (cage_v, cage_f) pair
+        Vs_n, Fs, Vt_n, Ft : (n, 3) float64, (m, 3) int64, (t, 3) float64, (p, 3) int64
+            The source and the target, each normalised on its own (``F`` empty for a
+            point cloud).
+        cage_v, cage_f : (k, 3) float64 and (c, 3) int64
             The source cage in the source's unit frame, checked already.
-        symmetry, weights, samples, shape_points, reference, coords, seed, target_kind
-            As :func:`deform` takes them.
+        options : DeformOptions
+            The terms and their sampling (``symmetry``, ``weights``, ``samples``,
+            ``shape_points``, ``reference``, ``coords``, ``seed``, ``target_kind``; the
+            solver's fields are :func:`solve`'s).
         landmarks : (source points (l, 3), target points (l, 3)), optional
             In the unit frames.
         """
-        check_choices(symmetry, reference)
-        weights = term_weights(weights, landmarks, symmetry, reference)
-        check_counts({"samples": samples, "shape_points": shape_points})
-        (Vs_n, Fs), (Vt_n, Ft) = source, target
+        symmetry, reference, coords = options.symmetry, options.reference, options.coords
+        weights = term_weights(options.weights, landmarks, symmetry, reference)
         src_lm, tgt_lm = (None, None) if landmarks is None else landmarks
-        rng = np.random.default_rng(seed)
+        samples, target_kind = options.samples, options.target_kind
+        rng = np.random.default_rng(options.seed)
         S = _samples_of("source", Vs_n, Fs, samples, int(rng.integers(2**31)))
         T = _samples_of("target", Vt_n, Ft, samples, int(rng.integers(2**31)))
-        used, own, index, mask = _shape_rows(Vs_n, Fs, shape_points, rng)
+        used, own, index, mask = _shape_rows(Vs_n, Fs, options.shape_points, rng)
         parts = [Vs_n, S] + ([src_lm] if src_lm is not None else [])
-        binding = bind(np.concatenate(parts), *cage, method=coords, check=False)
+        binding = bind(np.concatenate(parts), cage_v, cage_f, method=coords, check=False)
         face_terms = None
         if coords == "green":
 

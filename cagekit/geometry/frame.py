@@ -17,8 +17,7 @@ from numpy.typing import ArrayLike
 from cagekit.errors import InputError
 from cagekit.geometry import as_vertices
 
-__all__ = ["Frame", "MIN_EXTENT", "bounding_box", "bounding_box_diagonal", "normalize",
-           "denormalize"]
+__all__ = ["Frame", "MIN_EXTENT", "bounding_box", "bounding_box_diagonal"]
 
 #: smallest extent a shape may have: below it, differences of coordinates are subnormal
 #: numbers and lose digits (``2**52`` times the smallest normal float64, about 1e-292)
@@ -159,61 +158,3 @@ def bounding_box_diagonal(extent: ArrayLike) -> float:
     if np.isfinite(plain) and plain >= largest:  # no overflow or underflow: the plain norm
         return plain
     return largest * float(np.linalg.norm(extent / largest))
-
-
-def normalize(V: ArrayLike) -> tuple[np.ndarray, np.ndarray, float]:
-    """Map a shape into the paper's frame: bounding box centred, largest half-extent 1.
-
-    Parameters
-    ----------
-    V : array_like, shape (n, 3), float
-        Vertex positions.
-
-    Returns
-    -------
-    Vn : numpy.ndarray, shape (n, 3), float64
-        ``(V - center) / scale``; it fits ``[-1, 1]^3`` and touches the box on the
-        longest axis.
-    center : numpy.ndarray, shape (3,), float64
-        Bounding-box centre of ``V``.
-    scale : float
-        Largest half-extent of the bounding box of ``V``.
-
-    Raises
-    ------
-    InputError
-        All points coincide (zero extent), the extent is not resolvable (see
-        :func:`bounding_box`), or bad input.
-
-    Examples
-    --------
-    >>> Vn, c, s = normalize([[0, 0, 0], [4, 2, 0]])
-    >>> Vn.tolist(), c.tolist(), s
-    ([[-1.0, -0.5, 0.0], [1.0, 0.5, 0.0]], [2.0, 1.0, 0.0], 2.0)
-    """
-    frame = Frame.of(V)
-    return frame.to_unit(V), frame.centre, frame.scale
-
-
-def denormalize(Vn: ArrayLike, center: ArrayLike, scale: float) -> np.ndarray:
-    """Inverse of :func:`normalize`: ``Vn * scale + center``.
-
-    Parameters
-    ----------
-    Vn : array_like, shape (n, 3), float
-        Points in the normalised frame.
-    center : array_like, shape (3,), float
-        Centre returned by :func:`normalize`.
-    scale : float
-        Scale returned by :func:`normalize`; finite and positive.
-
-    Returns
-    -------
-    V : numpy.ndarray, shape (n, 3), float64
-
-    Examples
-    --------
-    >>> denormalize([[1.0, 0.5, 0.0]], [2.0, 1.0, 0.0], 2.0).tolist()
-    [[4.0, 2.0, 0.0]]
-    """
-    return Frame(center, scale).to_world(Vn)

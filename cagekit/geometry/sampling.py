@@ -15,42 +15,51 @@ from numpy.typing import ArrayLike
 from cagekit.errors import InputError
 from cagekit.geometry import as_count, as_faces, as_vertices, face_areas
 
-__all__ = ["sample_surface", "surface_samples", "subset"]
+__all__ = ["sample_surface", "subset"]
 
 
 def sample_surface(
-    V: ArrayLike, F: ArrayLike, n: int, seed: int = 0, return_faces: bool = False
+    V: ArrayLike, F: ArrayLike | None, n: int = 5000, seed: int = 0, *,
+    return_faces: bool = False, fill: bool = False,
 ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
-    """Sample points uniformly by area on a triangle mesh (seeded).
+    """Points standing for a shape: area-uniform samples of a mesh, or a cloud's points.
 
-    A face is chosen with probability proportional to its area, then a point uniformly
-    inside it (``trimesh.sample.sample_surface``, driven by
-    ``numpy.random.default_rng(seed)``; the global random state is not used).
+    On a mesh a face is chosen with probability proportional to its area, then a point
+    uniformly inside it (``trimesh.sample.sample_surface``, driven by
+    ``numpy.random.default_rng(seed)``; the global random state is not used). A point
+    cloud (no faces) is not resampled: its points, or a seeded subset of them.
 
     Parameters
     ----------
     V : array_like, shape (v, 3), float
         Vertex positions.
-    F : array_like, shape (m, 3), int
-        Triangles, ``m >= 1``, with positive total area.
-    n : int
-        Number of points, ``n >= 0``.
+    F : array_like, shape (m, 3), int, or None
+        Triangles with positive total area; ``None`` or empty for a point cloud.
+    n : int, default 5000
+        Number of samples: ``n >= 0`` on a mesh, ``n >= 1`` for a cloud.
     seed : int, optional
         Seed; the same inputs and seed give the same points.
     return_faces : bool, optional
-        Also return the face each point lies on.
+        Also return the face each point lies on (meshes only).
+    fill : bool, default False
+        A cloud of fewer than ``n`` points gives exactly ``n`` all the same: its points
+        drawn with replacement (training batches need equal sizes).
 
     Returns
     -------
-    points : numpy.ndarray, shape (n, 3), float64
+    points : numpy.ndarray, shape (n, 3) or (v, 3), float64
+        A mesh: ``n`` points uniform by area. A point cloud with ``v <= n`` points: the
+        points themselves (``fill``: ``n`` of them, with replacement, when ``v < n``). A
+        larger cloud: a seeded subset of ``n`` distinct points, in their original order
+        (:func:`subset`).
     faces : numpy.ndarray, shape (n,), int64
         Only when ``return_faces`` is True: index into ``F`` of each point's face.
 
     Raises
     ------
     InputError
-        No faces, zero total area, face areas that overflow (coordinates too large),
-        negative ``n``, or bad input.
+        Faces of zero total area, face areas that overflow (coordinates too large),
+        ``return_faces`` for a cloud, a negative ``n``, or bad input.
 
     Examples
     --------
@@ -58,12 +67,16 @@ def sample_surface(
     ...                        return_faces=True)
     >>> P.shape, fi.tolist()
     ((4, 3), [0, 0, 0, 0])
+    >>> sample_surface([[0, 0, 0], [1, 0, 0], [0, 1, 0]], None, n=10).shape
+    (3, 3)
     """
     V = as_vertices(V)
     F = as_faces(F, len(V))
-    n = as_count(n, "n", 0)
     if len(F) == 0:
-        raise InputError("cannot sample the surface of a point cloud (no faces)")
+        if return_faces:
+            raise InputError("a point cloud has no faces to return (return_faces)")
+        return _cloud_samples(V, n, seed, fill)
+    n = as_count(n, "n", 0)
     if not face_areas(V, F).sum() > 0.0:
         raise InputError("cannot sample a surface of zero total area")
     mesh = trimesh.Trimesh(vertices=V, faces=F, process=False, validate=False)
@@ -74,6 +87,17 @@ def sample_surface(
     if return_faces:
         return points, np.asarray(face_index, dtype=np.int64)
     return points
+
+
+def _cloud_samples(V: np.ndarray, n: int, seed: int, fill: bool) -> np.ndarray:
+    """A cloud's stand-in points: itself, a seeded subset, or (``fill``) ``n`` drawn."""
+    n = as_count(n, "n", 1)
+    rng = np.random.default_rng(seed)
+    if len(V) < n and fill:
+        return V[rng.integers(0, len(V), size=n)]
+    if len(V) <= n:
+        return V.copy()
+    return V[subset(len(V), n, rng)]
 
 
 def subset(n: int, limit: int, rng: np.random.Generator) -> np.ndarray:
@@ -96,49 +120,3 @@ def subset(n: int, limit: int, rng: np.random.Generator) -> np.ndarray:
     if n <= limit:
         return np.arange(n)
     return np.sort(rng.choice(n, size=limit, replace=False))
-
-
-def surface_samples(V: ArrayLike, F: ArrayLike | None, n: int = 5000, seed: int = 0,
-                    fill: bool = False) -> np.ndarray:
-    """Points standing for a shape: area-uniform samples of a mesh, or a cloud's points.
-
-    Parameters
-    ----------
-    V : array_like, shape (v, 3), float
-        Vertex positions.
-    F : array_like, shape (m, 3), int, or None
-        Triangles; ``None`` or empty for a point cloud.
-    n : int, optional
-        Number of samples.
-    seed : int, optional
-        Seed of ``numpy.random.default_rng``.
-    fill : bool, default False
-        A cloud of fewer than ``n`` points gives exactly ``n`` all the same: its points drawn
-        with replacement (training batches need equal sizes).
-
-    Returns
-    -------
-    points : numpy.ndarray, shape (n, 3) or (v, 3), float64
-        With faces: ``n`` points uniform by area (:func:`sample_surface`). A point cloud with
-        ``v <= n`` points: the points themselves (``fill``: ``n`` of them, with
-        replacement, when ``v < n``). A larger cloud: a seeded subset of ``n`` distinct
-        points, in their original order (:func:`subset`).
-
-    Examples
-    --------
-    >>> surface_samples([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]], n=10).shape
-    (10, 3)
-    >>> surface_samples([[0, 0, 0], [1, 0, 0], [0, 1, 0]], None, n=10).shape
-    (3, 3)
-    """
-    V = as_vertices(V)
-    F = as_faces(F, len(V))
-    if len(F):
-        return sample_surface(V, F, n, seed=seed)
-    n = as_count(n, "n", 1)
-    rng = np.random.default_rng(seed)
-    if len(V) < n and fill:
-        return V[rng.integers(0, len(V), size=n)]
-    if len(V) <= n:
-        return V.copy()
-    return V[subset(len(V), n, rng)]

@@ -23,15 +23,17 @@ transfer`` (:mod:`cagekit.cli.transfer`). See docs/architecture.md.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
 from cagekit.cage import check_cage
 from cagekit.coords import bind
 from cagekit.datasets.humanoid import RIGID_PARTS, landmark_part
-from cagekit.deformation import deform
+from cagekit.deformation import DeformOptions, deform
 from cagekit.errors import InputError
 from cagekit.geometry import as_vertices, cotangent_laplacian
 from cagekit.geometry.alignment import box_alignment, similarity_alignment
@@ -264,40 +266,49 @@ def check_landmarks_on_mesh(vertices, landmarks, name: str) -> None:
                          "in another frame or unit than the mesh?", name)
 
 
-def corresponds(template, pose) -> bool:
-    """True if ``pose`` shares ``template``'s vertex order: same vertex count and, when
+def corresponds(template_v: ArrayLike, template_f: ArrayLike | None, pose_v: ArrayLike,
+                pose_f: ArrayLike | None) -> bool:
+    """True if the pose shares the template's vertex order: same vertex count and, when
     both have faces, the same faces (poses of one rigged character).
 
     Parameters
     ----------
-    template, pose : (V, F) or (V,) tuples
-        ``V`` (n, 3) float, ``F`` (m, 3) int (may be missing or empty).
+    template_v, pose_v : (n, 3) array_like of float
+    template_f, pose_f : (m, 3) array_like of int, or None
+        Either may be None or empty (then only the vertex counts are compared).
 
     Returns
     -------
     bool
+
+    Examples
+    --------
+    >>> V, F = np.zeros((4, 3)), np.array([[0, 1, 2], [0, 2, 3]])
+    >>> corresponds(V, F, V + 1, F), corresponds(V, F, V[:3], None)
+    (True, False)
     """
-    Vs, Fs = template[0], template[1] if len(template) > 1 else None
-    Vp, Fp = pose[0], pose[1] if len(pose) > 1 else None
-    if len(Vs) != len(Vp):
+    if len(template_v) != len(pose_v):
         return False
-    if Fs is not None and Fp is not None and len(Fs) and len(Fp):
-        return np.array_equal(np.asarray(Fs), np.asarray(Fp))
+    if template_f is not None and pose_f is not None and len(template_f) and len(pose_f):
+        return np.array_equal(np.asarray(template_f), np.asarray(pose_f))
     return True
 
 
-def template_cage_classical(template, cage, pose, *, seed: int = 0,
-                            smoothness: float = SMOOTHNESS, fitter=None,
+def template_cage_classical(template_v: ArrayLike, template_f: ArrayLike | None,
+                            cage_v: ArrayLike, cage_f: ArrayLike, pose_v: ArrayLike,
+                            pose_f: ArrayLike | None, *, seed: int = 0,
+                            smoothness: float = SMOOTHNESS,
+                            fitter: Callable[[np.ndarray], np.ndarray] | None = None,
                             max_evaluations: int = TEMPLATE_EVALUATIONS) -> np.ndarray:
     """The template's deformed cage ``C_(s->t)`` by a per-pair cage fit (no training).
 
     Parameters
     ----------
-    template : (V, F) pair
+    template_v, template_f : (n, 3) array_like of float and (m, 3) array_like of int
         The template in rest pose.
-    cage : (cage_v, cage_f) pair
+    cage_v, cage_f : (k, 3) array_like of float and (c, 3) array_like of int
         ``C_s`` in the template's frame.
-    pose : (V, F) pair
+    pose_v, pose_f : (p, 3) array_like of float and (q, 3) array_like of int, or None
         The template in the target pose. When it :func:`corresponds` to the template
         (same vertex count and faces), the cage is the linear least-squares fit
         ``min_C |W C - V_pose|^2 + smoothness |L (C - C_s)|^2`` (``W`` the template's
@@ -316,11 +327,12 @@ def template_cage_classical(template, cage, pose, *, seed: int = 0,
     (k, 3) float64
         ``C_(s->t)`` in the pose's frame (the template's, for poses of one character).
     """
-    Vs, Vp = np.asarray(template[0], np.float64), np.asarray(pose[0], np.float64)
-    cage_v, cage_f = as_vertices(cage[0], "cage_v"), cage[1]
-    if not corresponds(template, pose):
-        result = deform(template, pose, cage=cage, method="cage",
-                        max_evaluations=max_evaluations, seed=seed)
+    Vs, Vp = np.asarray(template_v, np.float64), np.asarray(pose_v, np.float64)
+    cage_v = as_vertices(cage_v, "cage_v")
+    if not corresponds(Vs, template_f, Vp, pose_f):
+        result = deform(Vs, template_f, Vp, pose_f, cage_v, cage_f,
+                        DeformOptions(method="cage", max_evaluations=max_evaluations,
+                                      seed=seed))
         return result.deformed_cage_v
     if fitter is None:
         fitter = classical_fitter(Vs, cage_v, cage_f, smoothness=smoothness)

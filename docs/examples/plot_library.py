@@ -32,9 +32,10 @@ os.makedirs("out", exist_ok=True)
 save_mesh("out/deformed.obj", b.deform(new_cage_v), F)
 
 # per-pair deformation: the source takes the target's proportions
-source = load_mesh("data/example/chair_source.obj")
-target = load_mesh("data/example/chair_target.obj")
-result = cagekit.deform(source, target, symmetry="x")
+Vs, Fs = load_mesh("data/example/chair_source.obj")
+Vt, Ft = load_mesh("data/example/chair_target.obj")
+result = cagekit.deform(Vs, Fs, Vt, Ft, options=cagekit.DeformOptions(symmetry="x"))
 print(result.losses, result.iterations, result.seconds)
-print(cagekit.evaluate(source, target, (result.vertices, source[1])))  # CD, dCotLap
+figures = cagekit.evaluate(Vs, Fs, Vt, Ft, result.vertices)
+print(figures.cd_x1e2, figures.dcotlap_x1e3, figures.part_nonaffinity_worst)
 save_mesh("out/chair.obj", result.vertices, result.faces)

@@ -240,8 +240,8 @@ def test_deform_to_target_makes_a_new_object_and_its_cage():
     start = bpy.data.objects["src_cage"]  # the cage fitted for it, as it started
     assert cage.display_type == "WIRE" == start.display_type
     np.testing.assert_array_equal(meshes.local_vertices(source), before)  # input untouched
-    expected = cagekit.deform(meshes.world_mesh(source, "s"), meshes.world_mesh(target, "t"),
-                              symmetry="x", max_evaluations=15)
+    expected = cagekit.deform(*meshes.world_mesh(source, "s"), *meshes.world_mesh(target, "t"),
+                              options=cagekit.DeformOptions(symmetry="x", max_evaluations=15))
     np.testing.assert_allclose(meshes.local_vertices(out), np.float32(expected.vertices),
                                atol=1e-5)
     np.testing.assert_allclose(meshes.local_vertices(start), np.float32(expected.cage_v),
@@ -255,8 +255,9 @@ def test_deform_to_target_starts_from_a_given_cage():
     _select([shape], target)
     assert _run("deform_to_target", cage="cage", evaluations=5) == {"FINISHED"}
     assert "shape_cage" not in bpy.data.objects  # nothing fitted
-    result = cagekit.deform(meshes.world_mesh(shape, "s"), meshes.world_mesh(target, "t"),
-                            cage=meshes.world_mesh(cage, "c"), max_evaluations=5)
+    result = cagekit.deform(*meshes.world_mesh(shape, "s"), *meshes.world_mesh(target, "t"),
+                            *meshes.world_mesh(cage, "c"),
+                            options=cagekit.DeformOptions(max_evaluations=5))
     np.testing.assert_allclose(meshes.local_vertices(bpy.data.objects["shape_deformed_cage"]),
                                np.float32(result.deformed_cage_v), atol=1e-6)
 
@@ -310,7 +311,7 @@ def test_transfer_pose_with_landmarks_from_vertex_groups_or_files(tmp_path, land
         char = dt.fit_character(template_mesh[0], *cage, load_landmarks(files[0]), Vc, Fc,
                                 load_landmarks(files[1]))
         pose = io.load_mesh(pose_files[0])
-        expected = dt.transfer(char, dt.template_cage_classical(template_mesh, cage, pose))
+        expected = dt.transfer(char, dt.template_cage_classical(*template_mesh, *cage, *pose))
         got = meshes.world_vertices(bpy.data.objects[f"stocky_{pose_files[0].stem}"])
         np.testing.assert_allclose(got, np.float32(expected), atol=1e-5)
 

@@ -189,7 +189,8 @@ def library_eval(source, target, deformed, **kwargs):
     from cagekit.io import load_shape
     from cagekit.metrics import evaluate
 
-    return evaluate(load_shape(source), load_shape(target), load_shape(deformed), **kwargs)
+    return evaluate(*load_shape(source), *load_shape(target), load_shape(deformed)[0],
+                    **kwargs).as_dict()
 
 
 def test_eval_json_matches_the_library(eval_files):
@@ -304,8 +305,8 @@ def test_fit_cage_json_preview_and_cage(tmp_path):
     cv, cf = load_obj(out)
     assert len(cf) == report["faces"]
     again = cage_report(V, F, cv, cf, faces=120)
-    assert again["ok"]
-    assert abs(again["volume_ratio"] - report["volume_ratio"]) < 1e-6
+    assert again.ok
+    assert abs(again.volume_ratio - report["volume_ratio"]) < 1e-6
     with open(png, "rb") as fh:
         assert fh.read(8) == b"\x89PNG\r\n\x1a\n"
 

@@ -199,7 +199,7 @@ def test_resolution():
 @pytest.mark.parametrize("make", MAKERS)
 def test_fit_cage(make):
     V, F = make(seed=0)
-    cage_v, cage_f = cagekit.fit_cage(V, F, faces=200)
+    cage_v, cage_f, _ = cagekit.fit_cage(V, F, faces=200)
     assert len(cage_f) <= 200
     assert cagekit.cage_encloses(V, cage_v, cage_f)
 

@@ -9,7 +9,9 @@ import cagekit
 from cagekit.deformation import DEFAULT_WEIGHTS, CageEnergy
 from cagekit.deformation.terms import mirror
 from cagekit.errors import InputError
-from cagekit.metrics import chamfer_distance, dcotlap, evaluate
+from cagekit.metrics import dcotlap, evaluate, point_chamfer
+
+SCALE = cagekit.DeformOptions(method="scale")
 
 
 @pytest.fixture(scope="module")
@@ -19,12 +21,12 @@ def blob():
 
 @pytest.fixture(scope="module")
 def blob_cage(blob):
-    return cagekit.fit_cage(*blob, faces=120)
+    return cagekit.fit_cage(*blob, faces=120)[:2]
 
 
 def symmetry_error(V, axis="x"):
     V = V - 0.5 * (V.min(axis=0) + V.max(axis=0))
-    return chamfer_distance(V, mirror(V, axis))
+    return point_chamfer(V, mirror(V, axis))
 
 
 # ------------------------------------------------------------------------- the energy
@@ -118,10 +120,11 @@ def test_deform_with_green_coordinates_recovers_a_similar_copy(blob, blob_cage):
     target = (2.5 * V @ R.T + [1.0, -2.0, 0.5], F)
     errors = {}
     for coords in ("mvc", "green"):
-        result = cagekit.deform((V, F), target, cage=blob_cage, coords=coords, seed=0)
+        result = cagekit.deform(V, F, *target, *blob_cage,
+                                options=cagekit.DeformOptions(coords=coords, seed=0))
         assert result.iterations > 1 and np.isfinite(result.vertices).all()
-        errors[coords] = chamfer_distance(result.vertices, target[0]) / 2.5**2
-    scale = chamfer_distance(cagekit.deform((V, F), target, method="scale").vertices,
+        errors[coords] = point_chamfer(result.vertices, target[0]) / 2.5**2
+    scale = point_chamfer(cagekit.deform(V, F, *target, options=SCALE).vertices,
                              target[0]) / 2.5**2
     assert errors["green"] < 0.5 * scale
 
@@ -131,12 +134,12 @@ def test_optimiser_lowers_the_energy_and_the_chamfer_distance(blob, blob_cage):
     # a non-affine target: the top half swells
     Vt = target[0].copy()
     Vt[Vt[:, 1] > 0] *= [1.25, 1.0, 1.25]
-    result = cagekit.deform(blob, (Vt, blob[1]), cage=blob_cage)
+    result = cagekit.deform(*blob, Vt, blob[1], *blob_cage)
     assert result.energy < 0.8 * result.initial_energy
     assert result.iterations > 5
-    scale = cagekit.deform(blob, (Vt, blob[1]), method="scale")
-    cd_cage = evaluate(blob, (Vt, blob[1]), (result.vertices, blob[1]))["cd"]
-    cd_scale = evaluate(blob, (Vt, blob[1]), (scale.vertices, blob[1]))["cd"]
+    scale = cagekit.deform(*blob, Vt, blob[1], options=SCALE)
+    cd_cage = evaluate(*blob, Vt, blob[1], result.vertices).cd
+    cd_scale = evaluate(*blob, Vt, blob[1], scale.vertices).cd
     assert cd_cage < 0.7 * cd_scale
 
 
@@ -149,12 +152,14 @@ def test_scaled_copy_is_recovered_with_near_zero_distortion(blob, blob_cage, str
                                                             reference):
     V, F = blob
     target = V * stretch + [5.0, -3.0, 1.0]  # another frame and units
-    result = cagekit.deform(blob, (target, F), cage=blob_cage, reference=reference)
+    result = cagekit.deform(*blob, target, F, *blob_cage,
+                            options=cagekit.DeformOptions(reference=reference))
     size = np.ptp(target, axis=0).max()
     assert np.abs(result.vertices - target).max() < 0.01 * size
-    Vs_n = cagekit.normalize(V)[0]
-    Vt_n, center, scale = cagekit.normalize(target)
-    d = dcotlap(Vs_n, F, (result.vertices - center) / scale)
+    Vs_n = cagekit.Frame.of(V).to_unit(V)
+    frame = cagekit.Frame.of(target)
+    Vt_n = frame.to_unit(target)
+    d = dcotlap(Vs_n, F, frame.to_unit(result.vertices))
     exact = dcotlap(Vs_n, F, Vt_n)  # 0 for the uniform copy, the stretch's own cost
     # 5e-6 is 0.005 in the paper's tables (x 1e3): sample noise of the Chamfer term
     assert d - exact < 5e-6
@@ -164,9 +169,10 @@ def test_source_reference_charges_for_stretch(blob, blob_cage):
     """The paper's reference follows a stretch most of the way, not all of it."""
     V, F = blob
     target = V * [1.4, 0.8, 1.0]
-    result = cagekit.deform(blob, (target, F), cage=blob_cage, reference="source")
+    result = cagekit.deform(*blob, target, F, *blob_cage,
+                            options=cagekit.DeformOptions(reference="source"))
     assert result.weights["cage"] == 1.0  # its own default
-    aligned = cagekit.deform(blob, (target, F), cage=blob_cage)
+    aligned = cagekit.deform(*blob, target, F, *blob_cage)
     assert aligned.weights["cage"] == 0.3
     error = np.abs(result.vertices - target).max()
     assert error < 0.05 * np.ptp(target, axis=0).max()
@@ -178,8 +184,8 @@ def test_symmetric_inputs_stay_symmetric_with_the_symmetry_term(blob):
     Vt = V.copy()
     Vt[Vt[:, 1] > 0] *= [1.3, 1.0, 1.0]  # symmetric about x = 0 still
     assert symmetry_error(Vt) < 1e-4
-    without = cagekit.deform(blob, (Vt, F))
-    with_symmetry = cagekit.deform(blob, (Vt, F), symmetry="x")
+    without = cagekit.deform(*blob, Vt, F)
+    with_symmetry = cagekit.deform(*blob, Vt, F, options=cagekit.DeformOptions(symmetry="x"))
     assert "symmetry" in with_symmetry.losses and "symmetry" not in without.losses
     assert symmetry_error(with_symmetry.vertices) < 1e-3 * np.ptp(Vt, axis=0).max() ** 2
     assert symmetry_error(with_symmetry.vertices) <= symmetry_error(without.vertices)
@@ -187,15 +193,16 @@ def test_symmetric_inputs_stay_symmetric_with_the_symmetry_term(blob):
 
 def test_deterministic_with_a_seed(blob, blob_cage):
     Vt = blob[0] * [1.2, 1.0, 0.9]
-    a = cagekit.deform(blob, Vt, cage=blob_cage, seed=3)
-    b = cagekit.deform(blob, Vt, cage=blob_cage, seed=3)
+    a = cagekit.deform(*blob, Vt, None, *blob_cage, options=cagekit.DeformOptions(seed=3))
+    b = cagekit.deform(*blob, Vt, None, *blob_cage, options=cagekit.DeformOptions(seed=3))
     np.testing.assert_array_equal(a.vertices, b.vertices)
 
 
 def test_result_fields_and_frames(blob, blob_cage):
     V, F = blob
     target = (V * 10.0 + 100.0, F)
-    result = cagekit.deform(blob, target, cage=blob_cage, max_evaluations=10)
+    result = cagekit.deform(*blob, *target, *blob_cage,
+                            options=cagekit.DeformOptions(max_evaluations=10))
     assert isinstance(result, cagekit.DeformResult)
     assert result.vertices.shape == V.shape and result.vertices.dtype == np.float64
     np.testing.assert_array_equal(result.faces, F)
@@ -213,22 +220,25 @@ def test_result_fields_and_frames(blob, blob_cage):
 def test_initial_cage_sets_where_the_optimiser_starts(blob, blob_cage):
     V, F = blob
     target = (V * [1.3, 0.9, 1.1] * 5.0 + 2.0, F)
-    first = cagekit.deform(blob, target, cage=blob_cage, max_evaluations=15)
+    first = cagekit.deform(*blob, *target, *blob_cage,
+                           options=cagekit.DeformOptions(max_evaluations=15))
     # starting from an earlier result (in the target's frame) continues from its energy
-    again = cagekit.deform(blob, target, cage=blob_cage, max_evaluations=15,
+    again = cagekit.deform(*blob, *target, *blob_cage,
+                           options=cagekit.DeformOptions(max_evaluations=15),
                            initial_cage=first.deformed_cage_v)
     assert again.initial_energy == pytest.approx(first.energy, rel=1e-9)
     assert again.energy <= first.energy
     # a start far from the answer begins higher than the box-aligned default
-    far = cagekit.deform(blob, target, cage=blob_cage, max_evaluations=1,
+    far = cagekit.deform(*blob, *target, *blob_cage,
+                         options=cagekit.DeformOptions(max_evaluations=1),
                          initial_cage=first.deformed_cage_v * 1.5)
     assert far.initial_energy > first.initial_energy
     with pytest.raises(InputError, match="method cage only"):
-        cagekit.deform(blob, target, method="scale", initial_cage=first.deformed_cage_v)
+        cagekit.deform(*blob, *target, options=SCALE, initial_cage=first.deformed_cage_v)
     with pytest.raises(InputError, match="needs the cage"):
-        cagekit.deform(blob, target, initial_cage=first.deformed_cage_v)
+        cagekit.deform(*blob, *target, initial_cage=first.deformed_cage_v)
     with pytest.raises(InputError, match="vertices"):
-        cagekit.deform(blob, target, cage=blob_cage, initial_cage=first.deformed_cage_v[:-1])
+        cagekit.deform(*blob, *target, *blob_cage, initial_cage=first.deformed_cage_v[:-1])
 
 
 def test_point_cloud_target_and_source(blob, blob_cage):
@@ -237,12 +247,12 @@ def test_point_cloud_target_and_source(blob, blob_cage):
     Vt = V.copy()
     Vt[Vt[:, 1] > 0] *= [1.25, 1.0, 1.25]
     cloud = trimesh.Trimesh(Vt, F).sample(3000, seed=rng) + 0.003 * rng.standard_normal((3000, 3))
-    result = cagekit.deform(blob, cloud, cage=blob_cage)
-    scale = cagekit.deform(blob, cloud, method="scale")
-    cd = [chamfer_distance(r.vertices, cloud) for r in (result, scale)]
+    result = cagekit.deform(*blob, cloud, None, *blob_cage)
+    scale = cagekit.deform(*blob, cloud, None, options=SCALE)
+    cd = [point_chamfer(r.vertices, cloud) for r in (result, scale)]
     assert cd[0] < 0.7 * cd[1]
     points = trimesh.Trimesh(V, F).sample(1500, seed=2)
-    moved = cagekit.deform(points, cloud)
+    moved = cagekit.deform(points, None, cloud, None)
     assert moved.vertices.shape == (1500, 3) and len(moved.faces) == 0
     assert "normal" in moved.losses  # shape terms on k-NN neighbourhoods
     assert "detail" not in moved.losses  # no faces, no cotangent Laplacian
@@ -257,8 +267,8 @@ def test_partial_point_cloud_target(blob, blob_cage):
     cloud = trimesh.Trimesh(Vt, F).sample(4000, seed=rng)
     cloud = cloud[cloud[:, 2] > -0.1]
     cloud = cloud + 0.002 * rng.standard_normal(cloud.shape)
-    result = cagekit.deform(blob, cloud, cage=blob_cage)
-    scale = cagekit.deform(blob, cloud, method="scale")
+    result = cagekit.deform(*blob, cloud, None, *blob_cage)
+    scale = cagekit.deform(*blob, cloud, None, options=SCALE)
     assert np.isfinite(result.vertices).all()
     # how far the scanned points are from the result (the direction a partial scan defines)
     from scipy.spatial import cKDTree
@@ -274,8 +284,7 @@ def test_landmarks_replace_chamfer(blob, blob_cage):
     target = V * [1.3, 1.0, 1.0]
     idx = np.array([0, 5, 40, 100, 300, 500])
     moved_target = target[idx] + [0.0, 0.05, 0.0]
-    result = cagekit.deform(blob, (target, F), cage=blob_cage,
-                            landmarks=(V[idx], moved_target))
+    result = cagekit.deform(*blob, target, F, *blob_cage, landmarks=(V[idx], moved_target))
     assert "landmarks" in result.losses and "chamfer" not in result.losses
     before = np.abs(V[idx] * [1.3, 1, 1] - moved_target).max()
     after = np.abs(result.vertices[idx] - moved_target).max()
@@ -285,7 +294,7 @@ def test_landmarks_replace_chamfer(blob, blob_cage):
 def test_scale_baseline_maps_bounding_boxes(blob):
     V, F = blob
     target = V * [3.0, 0.5, 2.0] + 7.0
-    result = cagekit.deform(blob, (target, F), method="scale")
+    result = cagekit.deform(*blob, target, F, options=SCALE)
     np.testing.assert_allclose(result.vertices.min(axis=0), target.min(axis=0), atol=1e-12)
     np.testing.assert_allclose(result.vertices.max(axis=0), target.max(axis=0), atol=1e-12)
     assert result.cage_v is None and result.iterations == 0
@@ -294,10 +303,10 @@ def test_scale_baseline_maps_bounding_boxes(blob):
 def test_nricp_baseline_runs(blob):
     V, F = blob
     target = V * [1.2, 1.0, 1.0]
-    result = cagekit.deform(blob, (target, F), method="nricp")
+    result = cagekit.deform(*blob, target, F, options=cagekit.DeformOptions(method="nricp"))
     assert result.vertices.shape == V.shape and np.isfinite(result.vertices).all()
     with pytest.raises(InputError, match="nricp needs a source mesh"):
-        cagekit.deform(V, (target, F), method="nricp")
+        cagekit.deform(V, None, target, F, options=cagekit.DeformOptions(method="nricp"))
 
 
 @pytest.mark.parametrize("kwargs, message", [
@@ -314,16 +323,22 @@ def test_nricp_baseline_runs(blob):
 ])
 def test_bad_arguments(blob, blob_cage, kwargs, message):
     with pytest.raises(InputError, match=message):
-        cagekit.deform(blob, blob, cage=blob_cage, **kwargs)
+        landmarks = kwargs.pop("landmarks", None)
+        cagekit.deform(*blob, *blob, *blob_cage, options=cagekit.DeformOptions(**kwargs),
+                       landmarks=landmarks)
 
 
-def test_a_cage_must_be_a_pair(blob):
-    with pytest.raises(InputError, match="cage must be"):
-        cagekit.deform(blob, blob, cage=np.zeros((8, 3)))
+def test_a_cage_needs_its_vertices_and_faces(blob, blob_cage):
+    with pytest.raises(InputError, match="both its vertices and its faces"):
+        cagekit.deform(*blob, *blob, np.zeros((8, 3)))
+    with pytest.raises(InputError, match="both its vertices and its faces"):
+        cagekit.deform(*blob, *blob, cage_f=blob_cage[1])
+    with pytest.raises(InputError, match="options must be DeformOptions"):
+        cagekit.deform(*blob, *blob, options={"method": "scale"})
 
 
-def test_two_points_are_a_cloud_not_a_pair(blob):
-    result = cagekit.deform(blob, [[0.0, 0, 0], [1.0, 2.0, 1.0]], method="scale")
+def test_a_two_point_cloud_target(blob):
+    result = cagekit.deform(*blob, [[0.0, 0, 0], [1.0, 2.0, 1.0]], None, options=SCALE)
     assert np.allclose(result.vertices.min(axis=0), 0) and len(result.faces) == len(blob[1])
 
 
@@ -331,7 +346,7 @@ def test_nan_target_is_refused(blob):
     bad = blob[0].copy()
     bad[3, 1] = np.nan
     with pytest.raises(InputError):
-        cagekit.deform(blob, (bad, blob[1]))
+        cagekit.deform(*blob, bad, blob[1])
 
 
 def test_the_parts_of_a_multi_part_source_stay_affine():
@@ -341,15 +356,16 @@ def test_the_parts_of_a_multi_part_source_stay_affine():
     from cagekit.datasets import synthetic
 
     source, target = synthetic.chair(seed=2), synthetic.chair(seed=3)
-    kept = cagekit.deform(source, target, symmetry="x")
-    bent = cagekit.deform(source, target, symmetry="x", weights={"parts": 0.0})
-    scaled = cagekit.deform(source, target, method="scale")
-    figures = {name: evaluate(source, target, (r.vertices, source[1]))
+    kept = cagekit.deform(*source, *target, options=cagekit.DeformOptions(symmetry="x"))
+    bent = cagekit.deform(*source, *target,
+                          options=cagekit.DeformOptions(symmetry="x", weights={"parts": 0.0}))
+    scaled = cagekit.deform(*source, *target, options=SCALE)
+    figures = {name: evaluate(*source, *target, r.vertices)
                for name, r in (("kept", kept), ("bent", bent), ("scaled", scaled))}
-    assert figures["kept"]["parts"] == 17
-    assert figures["kept"]["part_nonaffinity_worst"] < 0.005
-    assert figures["bent"]["part_nonaffinity_worst"] > 0.01
-    assert figures["kept"]["cd"] < 0.5 * figures["scaled"]["cd"]
+    assert figures["kept"].parts == 17
+    assert figures["kept"].part_nonaffinity_worst < 0.005
+    assert figures["bent"].part_nonaffinity_worst > 0.01
+    assert figures["kept"].cd < 0.5 * figures["scaled"].cd
     assert "parts" in kept.losses and "parts" not in bent.losses  # the term ran or not
 
 
@@ -359,7 +375,8 @@ def test_nricp_refuses_vertices_on_no_face_in_one_line():
     V, F = bumpy_blob()
     loose = np.vstack([V, [[0.0, 0.0, 0.0]]])
     with pytest.raises(InputError, match="1 are on none"):
-        cagekit.deform((loose, F), (V * [1.2, 1.0, 1.0], F), method="nricp")
+        cagekit.deform(loose, F, V * [1.2, 1.0, 1.0], F,
+                       options=cagekit.DeformOptions(method="nricp"))
 
 
 def _scan_from_below(V, F, rays=60):
@@ -388,11 +405,12 @@ def test_a_partial_target_is_reached_without_squashing_the_unseen_side():
         return chamfer(frame.to_unit(result.vertices), source[1], frame.to_unit(target[0]),
                        target[1], n_samples=3000, seed=0)
 
-    as_full = cd(cagekit.deform(source, (scan, None), symmetry="x"))
-    partial = cd(cagekit.deform(source, (scan, None), symmetry="x", target_kind="partial"))
+    as_full = cd(cagekit.deform(*source, scan, None, options=cagekit.DeformOptions(symmetry="x")))
+    partial = cd(cagekit.deform(*source, scan, None,
+                                options=cagekit.DeformOptions(symmetry="x", target_kind="partial")))
     assert partial < 0.5 * as_full
     with pytest.raises(InputError, match="target_kind"):
-        cagekit.deform(source, (scan, None), target_kind="half")
+        cagekit.deform(*source, scan, None, options=cagekit.DeformOptions(target_kind="half"))
 
 
 def test_the_detail_term_lowers_dcotlap(blob, blob_cage):
@@ -403,13 +421,14 @@ def test_the_detail_term_lowers_dcotlap(blob, blob_cage):
     Vt[Vt[:, 1] > 0] *= [1.25, 1.0, 1.25]  # the top half swells
     figures = {}
     for weight in (0.0, 1.0, 10.0):
-        r = cagekit.deform(blob, (Vt, F), cage=blob_cage, weights={"detail": weight})
-        figures[weight] = evaluate(blob, (Vt, F), (r.vertices, F))
+        r = cagekit.deform(*blob, Vt, F, *blob_cage,
+                           options=cagekit.DeformOptions(weights={"detail": weight}))
+        figures[weight] = evaluate(*blob, Vt, F, r.vertices)
         assert ("detail" in r.losses) == (weight > 0)
-    scale = cagekit.deform(blob, (Vt, F), method="scale")
-    cd_scale = evaluate(blob, (Vt, F), (scale.vertices, F))["cd"]
-    assert figures[10.0]["dcotlap"] < figures[1.0]["dcotlap"] < figures[0.0]["dcotlap"]
-    assert figures[10.0]["cd"] < 0.7 * cd_scale
+    scale = cagekit.deform(*blob, Vt, F, options=SCALE)
+    cd_scale = evaluate(*blob, Vt, F, scale.vertices).cd
+    assert figures[10.0].dcotlap < figures[1.0].dcotlap < figures[0.0].dcotlap
+    assert figures[10.0].cd < 0.7 * cd_scale
 
 
 def test_shape_rows_keep_only_the_columns_their_rows_need():

@@ -2,16 +2,16 @@
 
 import numpy as np
 import pytest
-from builders import SQUARE_V
 
 from cagekit.errors import InputError
-from cagekit.geometry.frame import denormalize, normalize
+from cagekit.geometry.frame import Frame
 
 
-def test_normalize_frame_and_round_trip():
+def test_frame_of_a_shape_and_round_trip():
     rng = np.random.default_rng(3)
     V = rng.normal(size=(200, 3)) * [3.0, 0.5, 1.0] + [10.0, -4.0, 2.0]
-    Vn, center, scale = normalize(V)
+    frame = Frame.of(V)
+    Vn, center, scale = frame.to_unit(V), frame.centre, frame.scale
     assert (
         center.shape == (3,) and center.dtype == np.float64 and isinstance(scale, float)
     )
@@ -22,22 +22,22 @@ def test_normalize_frame_and_round_trip():
     longest = np.argmax(V.max(0) - V.min(0))
     assert Vn[:, longest].max() == pytest.approx(1.0, abs=1e-15)
     assert Vn[:, longest].min() == pytest.approx(-1.0, abs=1e-15)
-    np.testing.assert_allclose(denormalize(Vn, center, scale), V, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(Frame(center, scale).to_world(Vn), V, rtol=0, atol=1e-13)
 
 
-def test_normalize_rejects_degenerate_input():
+def test_frame_rejects_degenerate_input():
     with pytest.raises(InputError, match="zero extent"):
-        normalize([[1.0, 2.0, 3.0]])
+        Frame.of([[1.0, 2.0, 3.0]])
     with pytest.raises(InputError, match="zero extent"):
-        normalize(np.ones((5, 3)))
+        Frame.of(np.ones((5, 3)))
     with pytest.raises(InputError, match="no points"):
-        normalize(np.zeros((0, 3)))
+        Frame.of(np.zeros((0, 3)))
     with pytest.raises(InputError, match="NaN"):
-        normalize([[0, 0, 0], [np.nan, 1, 1]])
+        Frame.of([[0, 0, 0], [np.nan, 1, 1]])
     with pytest.raises(InputError):
-        denormalize(SQUARE_V, [0, 0, 0], 0.0)
+        Frame([0, 0, 0], 0.0)
     with pytest.raises(InputError):
-        denormalize(SQUARE_V, [0, 0], 1.0)
+        Frame([0, 0], 1.0)
 
 
 @pytest.mark.parametrize("scale", [1e-290, 1e-150, 1.0, 1e150, 1e300])
@@ -49,7 +49,7 @@ def test_bounding_box_is_resolvable_at_any_scale(scale):
     np.testing.assert_allclose(center / scale, [4.0, 3.5, 3.5], rtol=1e-15)
     np.testing.assert_allclose(extent / scale, [2.0, 1.0, 1.0], rtol=1e-15)
     assert bounding_box_diagonal(extent) / scale == pytest.approx(np.sqrt(6.0), rel=1e-15)
-    assert np.abs(normalize(V)[0]).max() == pytest.approx(1.0)
+    assert np.abs(Frame.of(V).to_unit(V)).max() == pytest.approx(1.0)
 
 
 def test_bounding_box_refuses_what_float64_cannot_resolve():

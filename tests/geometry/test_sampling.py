@@ -52,8 +52,8 @@ def test_sample_surface_is_area_uniform():
 def test_sample_surface_rejects_bad_input():
     with pytest.raises(InputError, match="zero total area"):
         sample_surface([[0, 0, 0], [1, 0, 0], [2, 0, 0]], [[0, 1, 2]], 10)
-    with pytest.raises(InputError, match="no faces"):
-        sample_surface(SQUARE_V, None, 10)
+    with pytest.raises(InputError, match="no faces to return"):
+        sample_surface(SQUARE_V, None, 10, return_faces=True)
     with pytest.raises(InputError):
         sample_surface(SQUARE_V, SQUARE_F, -1)
     assert sample_surface(SQUARE_V, SQUARE_F, 0).shape == (0, 3)

@@ -160,7 +160,7 @@ def test_cache_hit_reads_no_mesh(folder, monkeypatch):
         raise AssertionError(f"mesh read on a cache hit: {path}")
 
     monkeypatch.setattr(data, "load_shape", fail)
-    monkeypatch.setattr(data, "surface_samples", fail)
+    monkeypatch.setattr(data, "sample_surface", fail)
     second = ShapeCollection.from_folder(folder, points=P)
     assert second.names == first.names
     assert np.array_equal(second.points, first.points)

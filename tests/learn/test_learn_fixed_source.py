@@ -14,7 +14,7 @@ from builders import TINY_MODEL, invoke, states_equal  # noqa: E402
 
 from cagekit import io  # noqa: E402
 from cagekit.errors import InputError  # noqa: E402
-from cagekit.geometry.frame import normalize  # noqa: E402
+from cagekit.geometry.frame import Frame  # noqa: E402
 from cagekit_learn.checkpoint import load_checkpoint  # noqa: E402
 from cagekit_learn.data import (  # noqa: E402
     FIXED_SOURCE,
@@ -34,6 +34,11 @@ SEED = 1
 # the template's own frame: an ellipsoid away from the origin, not of unit size
 STRETCH = np.array([1.2, 1.0, 0.8])
 SCALE, SHIFT = 3.0, np.array([1.0, 2.0, 3.0])
+
+
+def _unit(V):
+    """V in its own unit frame."""
+    return Frame.of(V).to_unit(V)
 
 
 def _place(V):
@@ -140,7 +145,8 @@ def test_cli_stores_the_template_samples_and_its_cage_in_the_template_frame(run_
     assert payload["step"] == 3
     assert config["fixed_source"] == str(shapes["template"]) and config["align"] == "l2"
     Vt, _ = io.load_mesh(shapes["template"])
-    Vn, center, scale = normalize(Vt)
+    frame = Frame.of(Vt)
+    Vn, center, scale = frame.to_unit(Vt), frame.centre, frame.scale
     # the cage file is in the template's frame; the model holds it normalised with it
     cage_v, cage_f = io.load_mesh(shapes["cage"])
     assert np.allclose(mc["fixed_cage_v"], (cage_v - center) / scale, atol=1e-6)
@@ -179,7 +185,7 @@ def test_every_batch_has_the_template_as_source_and_augments_only_targets(
     result = train(_config(tmp_path, shapes, max_steps=6), progress=False)  # two epochs
     assert result.step == 6 and len(seen) == 6
     template = torch.as_tensor(result.model.config.fixed_source_points, dtype=torch.float32)
-    Vn = normalize(io.load_mesh(shapes["template"])[0])[0]
+    Vn = _unit(io.load_mesh(shapes["template"])[0])
     assert np.allclose(template.numpy(), Vn[result.model.config.fixed_source_rows], atol=1e-6)
     for (rows, points, batch), source in zip(seen, losses_seen):
         assert (rows[:, 0] == FIXED_SOURCE).all()
@@ -209,7 +215,7 @@ def test_chamfer_fixed_source_is_surface_sampled_and_needs_no_vertex_order(tmp_p
     mc = result.model.config
     assert result.step == 2 and mc.fixed_source_rows is None
     assert mc.fixed_source_vertex_count == 42 and len(mc.fixed_source_points) == POINTS
-    V = normalize(io.load_mesh(shapes["coarse"])[0])[0]
+    V = _unit(io.load_mesh(shapes["coarse"])[0])
     assert np.abs(np.asarray(mc.fixed_source_points)).max() <= 1 + 1e-6
     assert not np.allclose(np.asarray(mc.fixed_source_points)[:42], V, atol=1e-3)
 
@@ -232,7 +238,8 @@ def test_predict_fixed_source_and_deform_with_model(run_dir, shapes):
     mc = payload["model_config"]
     rows = np.asarray(mc["fixed_source_rows"])
     Vp, Fp = io.load_mesh(shapes["data"] / "pose2.obj")
-    Vp_n, cp, sp = normalize(Vp)
+    frame = Frame.of(Vp)
+    Vp_n, cp, sp = frame.to_unit(Vp), frame.centre, frame.scale
     source_cage, deformed_cage = predict_fixed_source(model, Vp_n[rows])
     assert source_cage.shape == deformed_cage.shape == (42, 3)
     assert np.allclose(source_cage, mc["fixed_cage_v"], atol=1e-6)
@@ -241,7 +248,7 @@ def test_predict_fixed_source_and_deform_with_model(run_dir, shapes):
         predict_fixed_source(NeuralCages(ModelConfig(**TINY_MODEL)), Vp_n[rows])
 
     Vt, Ft = io.load_mesh(shapes["template"])
-    result = deform_with_model(model, (Vt, Ft), (Vp, Fp), points=POINTS)
+    result = deform_with_model(model, Vt, Ft, Vp, Fp, points=POINTS)
     assert result.vertices.shape == Vt.shape and np.isfinite(result.vertices).all()
     # the source cage comes back in the template's own frame: the cage file
     assert np.allclose(result.cage_v, io.load_mesh(shapes["cage"])[0], atol=1e-4)

@@ -14,8 +14,9 @@ from builders import REPOSITORY as ROOT  # noqa: E402
 from cagekit import bind, io  # noqa: E402
 from cagekit.cli import main  # noqa: E402
 from cagekit.datasets import synthetic  # noqa: E402
-from cagekit.geometry.frame import normalize  # noqa: E402
-from cagekit.geometry.sampling import surface_samples  # noqa: E402
+from cagekit.deformation import DeformOptions  # noqa: E402
+from cagekit.geometry.frame import Frame  # noqa: E402
+from cagekit.geometry.sampling import sample_surface  # noqa: E402
 from cagekit.metrics import evaluate  # noqa: E402
 from cagekit_learn.inference import deform_with_model, predict  # noqa: E402
 from cagekit_learn.train import load_model  # noqa: E402
@@ -60,14 +61,16 @@ def test_train_command_writes_checkpoint_and_log(run_dir):
 def test_prediction_deforms_the_full_mesh_with_the_core_binding(run_dir, pair):
     model, payload = load_model(run_dir)
     src, tgt = io.load_shape(pair[0]), io.load_shape(pair[1])
-    result = deform_with_model(model, src, tgt, points=256, seed=5)
+    result = deform_with_model(model, *src, *tgt, points=256, seed=5)
     assert result.method == "learned"
     assert result.vertices.shape == src[0].shape and np.isfinite(result.vertices).all()
     # the same thing by hand: samples, one forward pass, the core's float64 MVC
-    Vs_n, cs, ss = normalize(src[0])
-    Vt_n, ct, st = normalize(tgt[0])
-    cage, deformed = predict(model, surface_samples(Vs_n, src[1], 256, seed=5),
-                             surface_samples(Vt_n, tgt[1], 256, seed=6))
+    frame = Frame.of(src[0])
+    Vs_n, cs, ss = frame.to_unit(src[0]), frame.centre, frame.scale
+    frame = Frame.of(tgt[0])
+    Vt_n, ct, st = frame.to_unit(tgt[0]), frame.centre, frame.scale
+    cage, deformed = predict(model, sample_surface(Vs_n, src[1], 256, seed=5),
+                             sample_surface(Vt_n, tgt[1], 256, seed=6))
     expected = bind(Vs_n, cage, model.cage_f.numpy()).deform(deformed) * st + ct
     assert np.allclose(result.vertices, expected, atol=1e-9)
     assert np.allclose(result.cage_v, cage * ss + cs)
@@ -77,13 +80,13 @@ def test_prediction_deforms_the_full_mesh_with_the_core_binding(run_dir, pair):
 def test_refine_starts_from_the_prediction_and_improves_it(run_dir, pair):
     model, _ = load_model(run_dir)
     src, tgt = io.load_shape(pair[0]), io.load_shape(pair[1])
-    learned = deform_with_model(model, src, tgt, points=256)
-    refined = deform_with_model(model, src, tgt, points=256, refine=True,
-                                max_evaluations=30)
+    learned = deform_with_model(model, *src, *tgt, points=256)
+    refined = deform_with_model(model, *src, *tgt, points=256, refine=True,
+                                options=DeformOptions(max_evaluations=30))
     assert refined.method == "learned+refine"
     assert np.allclose(refined.cage_v, learned.cage_v)
-    cd_learned = evaluate(src, tgt, (learned.vertices, src[1]))["cd"]
-    cd_refined = evaluate(src, tgt, (refined.vertices, src[1]))["cd"]
+    cd_learned = evaluate(*src, *tgt, learned.vertices).cd
+    cd_refined = evaluate(*src, *tgt, refined.vertices).cd
     assert cd_refined < cd_learned
     assert refined.energy <= refined.initial_energy
 
@@ -203,7 +206,7 @@ def test_a_model_trained_with_green_coordinates_deforms_with_them(tmp_path, pair
     assert code == 0
     model, _ = load_model(str(run))
     assert model.config.coords == "green"
-    result = deform_with_model(model, io.load_shape(pair[0]), io.load_shape(pair[1]),
+    result = deform_with_model(model, *io.load_shape(pair[0]), *io.load_shape(pair[1]),
                                points=128)
     assert np.isfinite(result.vertices).all()
     # the full mesh follows the predicted cages under Green coordinates, as the core does
@@ -215,6 +218,7 @@ def test_a_model_trained_with_green_coordinates_deforms_with_them(tmp_path, pair
     np.testing.assert_allclose(result.target_frame.to_unit(result.vertices), expected,
                                atol=1e-9)
     # --refine optimises under the model's coordinates (the options' coords are ignored)
-    refined = deform_with_model(model, io.load_shape(pair[0]), io.load_shape(pair[1]),
-                                points=128, refine=True, coords="mvc", max_evaluations=5)
+    refined = deform_with_model(model, *io.load_shape(pair[0]), *io.load_shape(pair[1]),
+                                points=128, refine=True,
+                                options=DeformOptions(coords="mvc", max_evaluations=5))
     assert refined.method == "learned+refine" and np.isfinite(refined.vertices).all()

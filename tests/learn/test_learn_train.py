@@ -233,7 +233,7 @@ def test_two_torchrun_processes_keep_identical_weights(tmp_path):
 def test_l2_alignment_trains_on_shapes_in_correspondence(tmp_path):
     from cagekit import io
     from cagekit.datasets import synthetic
-    from cagekit.geometry.frame import normalize
+    from cagekit.geometry.frame import Frame
 
     V, F = synthetic.vase(1, resolution=0.5)
     folder = tmp_path / "poses"
@@ -242,11 +242,12 @@ def test_l2_alignment_trains_on_shapes_in_correspondence(tmp_path):
         io.save_mesh(folder / f"pose{i}.obj", V * stretch + i, F)
     shapes = ShapeCollection.corresponding(folder, points=64, seed=1)
     # point i of every shape is the same vertex, normalised with its own shape
-    row = np.flatnonzero(np.all(np.isclose(normalize(V)[0], shapes.points[0][0], atol=1e-6),
-                                axis=1))
+    moved = V * [1.3, 0.9, 1.0] + 1
+    moved_n = Frame.of(moved).to_unit(moved)
+    row = np.flatnonzero(np.all(np.isclose(Frame.of(V).to_unit(V), shapes.points[0][0],
+                                           atol=1e-6), axis=1))
     assert len(row) >= 1
-    assert np.allclose(shapes.points[1][0], normalize(V * [1.3, 0.9, 1.0] + 1)[0][row[0]],
-                       atol=1e-6)
+    assert np.allclose(shapes.points[1][0], moved_n[row[0]], atol=1e-6)
     config = _config(tmp_path, data=str(folder), align="l2", points=64, batch_size=1,
                      max_steps=3)
     result = train(config, progress=False)

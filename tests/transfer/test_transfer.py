@@ -129,7 +129,7 @@ def test_similar_copy_of_the_template_moves_like_the_template(data, rule):
     assert char.fit.landmark_errors.max() < 1e-8 and char.fit.checks["valid"]
     np.testing.assert_allclose(char.cage_v, A.apply(cage_v), atol=1e-8)
     Vp, Fp = io.load_mesh(data[0] / "poses" / "pose_000.obj")
-    C = dt.template_cage_classical((Vt, Ft), (cage_v, cage_f), (Vp, Fp))
+    C = dt.template_cage_classical(Vt, Ft, cage_v, cage_f, Vp, Fp)
     # the template bound as a character is (mean value coordinates, mended where they
     # see through the cage's folds)
     expected = A.apply(bind_surface(Vt, Ft, cage_v, cage_f).deform(C))
@@ -282,7 +282,7 @@ def test_classical_transfer_does_not_import_torch(data, tmp_path):
 def test_classical_template_fit_is_close_to_the_pose(data):
     (Vt, Ft), (cage_v, cage_f), _, _, _ = _character(data[0])
     Vp, Fp = io.load_mesh(data[0] / "poses" / "pose_000.obj")
-    C = dt.template_cage_classical((Vt, Ft), (cage_v, cage_f), (Vp, Fp))
+    C = dt.template_cage_classical(Vt, Ft, cage_v, cage_f, Vp, Fp)
     X = bind(Vt, cage_v, cage_f).weights @ C
     height = np.ptp(Vt[:, 1])
     moved = np.linalg.norm(Vp - Vt, axis=1).mean() / height
@@ -402,9 +402,9 @@ def test_the_application_runs_cagekit_transfer():
 
 def test_corresponds_needs_the_same_vertex_count_and_faces():
     V, F = np.zeros((4, 3)), np.array([[0, 1, 2], [0, 2, 3]])
-    assert dt.corresponds((V, F), (V + 1, F))
-    assert not dt.corresponds((V, F), (V[:3], F[:1]))
-    assert not dt.corresponds((V, F), (V, F[:, ::-1]))
+    assert dt.corresponds(V, F, V + 1, F)
+    assert not dt.corresponds(V, F, V[:3], F[:1])
+    assert not dt.corresponds(V, F, V, F[:, ::-1])
 
 
 @pytest.fixture(scope="module")
@@ -544,7 +544,7 @@ def test_twice_the_shoulders_reach_the_pose_with_their_own_width(data):
     l, r = rc.landmarks["l_shoulder_top"], rc.landmarks["r_shoulder_top"]
     for seed in (4, 9):
         pose = humanoid.random_pose(seed)
-        moved = dt.template_cage_classical(template, cage, (rt.pose(pose), rt.faces))
+        moved = dt.template_cage_classical(*template, *cage, rt.pose(pose), rt.faces)
         X, truth = dt.transfer(char, moved, "pose"), rc.pose(pose)
         width, true_width = np.linalg.norm(X[l] - X[r]), np.linalg.norm(truth[l] - truth[r])
         assert abs(width / true_width - 1) <= 0.05, (seed, width, true_width)

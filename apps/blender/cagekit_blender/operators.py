@@ -80,7 +80,8 @@ class CAGEKIT_OT_fit_cage(jobs.Job, bpy.types.Operator):
 
         name, V, F = inputs
         progress(0, 1, name)
-        return name, fit_cage(V, F, faces=self.faces, method=self.method)
+        cage = fit_cage(V, F, faces=self.faces, method=self.method, report=False)
+        return name, (cage.vertices, cage.faces)
 
     def apply(self, context, result):
         name, (cage_v, cage_f) = result
@@ -190,13 +191,15 @@ class CAGEKIT_OT_deform_to_target(jobs.Job, bpy.types.Operator):
                 None if cage is None else meshes.world_mesh(cage, f"cage {cage.name!r}"))
 
     def compute(self, inputs, progress):
-        from cagekit import deform
+        from cagekit import DeformOptions, deform
 
         name, source, target, cage = inputs
-        return name, cage is None, deform(
-            source, target, cage=cage, faces=self.faces, coords=self.coords,
+        options = DeformOptions(
+            faces=self.faces, coords=self.coords,
             symmetry=None if self.symmetry == "none" else self.symmetry,
-            max_evaluations=self.evaluations, seed=self.seed,
+            max_evaluations=self.evaluations, seed=self.seed)
+        return name, cage is None, deform(
+            *source, *target, *((None, None) if cage is None else cage), options=options,
             progress=lambda i, n: progress(i, n, "evaluations"))
 
     def apply(self, context, result):
@@ -278,7 +281,7 @@ class CAGEKIT_OT_transfer_pose(jobs.Job, bpy.types.Operator):
         out = []
         for i, (pose_name, pose) in enumerate(poses):
             progress(i + 1, len(poses) + 1, pose_name)
-            C = dt.template_cage_classical((Vt, Ft), (cv, cf), pose, seed=self.seed,
+            C = dt.template_cage_classical(Vt, Ft, cv, cf, *pose, seed=self.seed,
                                            fitter=fitter)
             out.append((pose_name, dt.transfer(char, C, self.rule)))
         return name, char, out
