@@ -68,6 +68,7 @@ test-slow: $(STAMP)
 
 lint: $(STAMP)
 	$(BIN)/ruff check cagekit cagekit_learn apps tests benchmarks data
+	$(BIN)/mypy
 
 # the API reference, built from the docstrings (Sphinx, numpydoc, autosummary over cagekit and
 # cagekit_learn) with the README's library example run by sphinx-gallery: out/docs/index.html.

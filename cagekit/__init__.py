@@ -47,7 +47,7 @@ _EXPORTS = {
 }
 #: submodules reachable as attributes (``cagekit.io.load_mesh``) without importing them first
 _SUBMODULES = ("batch", "cage", "coords", "datasets", "deformation", "errors", "geometry",
-               "io", "metrics", "progress", "render", "transfer")
+               "io", "metrics", "progress", "render", "transfer", "typed")
 
 __all__ = [*_EXPORTS, *_SUBMODULES, "__version__"]
 

@@ -51,7 +51,21 @@ class CageError(InputError):
 
 class CageFitError(InputError):
     """No cage meeting every guarantee could be built (``cagekit.fit_cage``, the character
-    cage of a transfer); the message says what failed."""
+    cage of a transfer); the message says what failed.
+
+    Attributes
+    ----------
+    cage : (cage_v, cage_f) or None
+        The cage that failed, to look at, when there is one (the character cage).
+    missed : list of str or None
+        The labels of the landmarks the character cage missed by too much, the worst first.
+    outside_near : dict of str to int or None
+        For the points left outside, how many lie nearest each landmark.
+    """
+
+    cage: tuple | None = None
+    missed: list[str] | None = None
+    outside_near: dict[str, int] | None = None
 
 
 class CagekitWarning(UserWarning):
@@ -87,4 +101,4 @@ def exception_chain(exc: BaseException) -> Iterator[BaseException]:
             continue
         seen.add(id(exc))
         yield exc
-        todo += [exc.__cause__, exc.__context__]  # the context is looked at first
+        todo += [e for e in (exc.__cause__, exc.__context__) if e is not None]  # context first

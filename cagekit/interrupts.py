@@ -24,12 +24,14 @@ from __future__ import annotations
 import contextlib
 import signal
 import threading
+from collections.abc import Callable, Iterator
+from types import FrameType
 
 __all__ = ["sigint_deferred"]
 
 
 @contextlib.contextmanager
-def sigint_deferred():
+def sigint_deferred() -> Iterator[Callable[[], None]]:
     """While the block runs, a SIGINT only takes note; yields ``pending()``, which calls
     the SIGINT handler that was installed (it may raise) if one arrived since the last call.
     Several that arrive between two calls count as one.
@@ -43,7 +45,7 @@ def sigint_deferred():
     if not callable(previous) or threading.current_thread() is not threading.main_thread():
         yield lambda: None
         return
-    arrived = []
+    arrived: list[FrameType | None] = []
 
     def pending():
         if arrived:

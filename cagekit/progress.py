@@ -9,6 +9,11 @@ from __future__ import annotations
 
 import os
 import sys
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from tqdm import tqdm
 
 __all__ = ["progress_enabled", "progress_bar", "bar_callback"]
 
@@ -36,7 +41,7 @@ def _terminal_size() -> tuple[int, int]:
 
 
 def progress_bar(desc: str, unit: str, total: int | None = None, initial: int = 0,
-                 enabled: bool | None = None, leave: bool = False):
+                 enabled: bool | None = None, leave: bool = False) -> tqdm:
     """A tqdm bar on stderr; disabled (a no-op with the same methods) when not wanted.
 
     Parameters
@@ -71,10 +76,10 @@ def progress_bar(desc: str, unit: str, total: int | None = None, initial: int = 
                 leave=leave, ncols=columns, nrows=lines, disable=not show)
 
 
-def bar_callback(bar):
+def bar_callback(bar: tqdm) -> Callable[[int, int], None]:
     """A ``progress(done, total)`` callback that moves ``bar`` (for library functions)."""
 
-    def update(done, total):
+    def update(done: int, total: int) -> None:
         bar.total = total
         bar.n = min(done, total)
         bar.refresh()

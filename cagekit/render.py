@@ -14,12 +14,14 @@ without a display and does not disturb a caller's own plotting.
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
+from typing import TypeAlias
 
 import numpy as np
 from matplotlib.figure import Figure
 from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the "3d" projection)
 from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
+from numpy.typing import ArrayLike
 
 from cagekit.cage import unique_edges
 from cagekit.geometry import as_shape
@@ -38,6 +40,9 @@ _SURFACE_RGB = np.array([0.62, 0.72, 0.86])
 _CLOUD_RGB = (0.25, 0.42, 0.70)
 _CAGE_RGB = (0.85, 0.33, 0.10)
 _AMBIENT = 0.22
+
+#: a shape as the renderers take it: ``(V, F)``, ``F`` None or empty for a point cloud
+_ShapeLike: TypeAlias = tuple[ArrayLike, ArrayLike | None]
 
 
 def _to_display(V: np.ndarray, up: str) -> np.ndarray:
@@ -212,10 +217,10 @@ def _cube_limits(points: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
 
 
 def render_meshes(
-    meshes,
-    path,
-    cages=None,
-    titles=None,
+    meshes: Iterable[_ShapeLike],
+    path: str | os.PathLike,
+    cages: Iterable[_ShapeLike | None] | None = None,
+    titles: Iterable[str] | None = None,
     caption: str | None = None,
     views: Sequence[tuple[float, float]] = ((20, -60),),
     size: tuple[int, int] = (480, 480),
@@ -337,7 +342,10 @@ def render_meshes(
     return os.fspath(path)
 
 
-def render_grid(path, rows, *, cages=None, titles=None, captions=None,
+def render_grid(path: str | os.PathLike, rows: Iterable[Iterable[_ShapeLike]], *,
+                cages: Sequence[Iterable[_ShapeLike | None] | None] | None = None,
+                titles: Sequence[Iterable[str] | None] | None = None,
+                captions: Sequence[str | None] | None = None,
                 size: tuple[int, int] = (240, 300), same_scale: bool = False,
                 views: Sequence[tuple[float, float]] = ((20, -60),), up: str = "y",
                 columns: int = 1) -> str:

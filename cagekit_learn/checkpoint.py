@@ -14,6 +14,7 @@ the previous checkpoint whole, and the next save removes what the killed one lef
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import torch
@@ -28,13 +29,13 @@ FORMAT = 1
 CHECKPOINT_NAME = "checkpoint.pt"
 
 
-def resolve(path) -> Path:
+def resolve(path: str | os.PathLike) -> Path:
     """A checkpoint file from a path that may name the run folder instead."""
     path = Path(path)
     return path / CHECKPOINT_NAME if path.is_dir() else path
 
 
-def save_checkpoint(path, payload: dict) -> None:
+def save_checkpoint(path: str | os.PathLike, payload: dict) -> None:
     """Write ``payload`` to ``path`` atomically (temporary file, fsync, rename).
 
     Parameters
@@ -55,7 +56,8 @@ def nonfinite_tensors(state_dict: dict) -> list[str]:
             and not bool(torch.isfinite(t).all())]
 
 
-def load_checkpoint(path, map_location="cpu") -> dict:
+def load_checkpoint(path: str | os.PathLike,
+                    map_location: str | torch.device = "cpu") -> dict:
     """Read a checkpoint with ``torch.load(weights_only=True)``.
 
     Parameters

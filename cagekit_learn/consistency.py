@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import torch
+from numpy.typing import ArrayLike
 
 from cagekit.cage import check_cage
 from cagekit.coords import bind as bind_numpy
@@ -124,8 +125,9 @@ class _ConsistencyEnergy:
         return f, g
 
 
-def consistency_loss(cage_v, cage_f, source_landmarks, fitted_cage_v, target_landmarks,
-                     laplacian_weight: float = LAPLACIAN_WEIGHT) -> dict:
+def consistency_loss(cage_v: ArrayLike, cage_f: ArrayLike, source_landmarks: ArrayLike,
+                     fitted_cage_v: ArrayLike, target_landmarks: ArrayLike,
+                     laplacian_weight: float = LAPLACIAN_WEIGHT) -> dict[str, float]:
     """``L_consistency`` of a given cage (no fitting, no alignment).
 
     Parameters
@@ -162,8 +164,10 @@ def _energy(cage_v, cage_f, P, Qa, weight):
                               np.linalg.norm(lap @ cage_v, axis=1), weight)
 
 
-def fit_cage_by_consistency(cage_v, cage_f, source_landmarks, target_landmarks, *,
-                            alignment="similarity", init=None,
+def fit_cage_by_consistency(cage_v: ArrayLike, cage_f: ArrayLike,
+                            source_landmarks: ArrayLike, target_landmarks: ArrayLike, *,
+                            alignment: str | Similarity = "similarity",
+                            init: ArrayLike | None = None,
                             laplacian_weight: float = LAPLACIAN_WEIGHT,
                             tolerance: float = 1e-5,
                             max_evaluations: int = 300) -> ConsistencyFit:
@@ -244,7 +248,8 @@ def fit_cage_by_consistency(cage_v, cage_f, source_landmarks, target_landmarks, 
             C, evaluations = minimum.x, minimum.evaluations
         loss, mvc, lap = energy.value(C)
     if loss > initial:  # never worse than the start
-        C, loss, mvc, lap = C0, *energy.value(C0)
+        C = C0
+        loss, mvc, lap = energy.value(C0)
     cage_out = A.apply(C)
     # the fitted cage may fold; the caller checks it (deformation transfer reports it)
     phi_q = bind_numpy(energy.Qa.numpy(), C, energy.cage_f, check=False).weights

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import torch
+from numpy.typing import ArrayLike
 from torch.utils.checkpoint import checkpoint
 
 from cagekit.cage import cage_topology, check_cage
@@ -322,7 +323,8 @@ def _as_float_tensor(a, name):
     return a
 
 
-def mean_value_coordinates(points, cage_v, cage_f, *, snap: float | None = None,
+def mean_value_coordinates(points: torch.Tensor | ArrayLike, cage_v: torch.Tensor | ArrayLike,
+                           cage_f: torch.Tensor | ArrayLike, *, snap: float | None = None,
                            chunk_size: int = 2048) -> torch.Tensor:
     """Differentiable mean value coordinates of points with respect to closed triangle cages.
 
@@ -488,15 +490,16 @@ def _blend_far_rows(Pc, Vc, faces_np, out):
     return out.index_put((bi, ni), blended)
 
 
-def deform(weights, new_cage_v) -> torch.Tensor:
+def deform(weights: torch.Tensor, new_cage_v: torch.Tensor | ArrayLike) -> torch.Tensor:
     """Positions of bound points for moved cage vertices: ``weights @ new_cage_v``.
 
     Parameters
     ----------
     weights : (B, n, k) or (n, k) torch.Tensor
         Coordinates from :func:`mean_value_coordinates`.
-    new_cage_v : (B, k, 3) or (k, 3) torch.Tensor
-        The moved cage vertices, same dtype; a ``(k, 3)`` cage is shared by the batch.
+    new_cage_v : (B, k, 3) or (k, 3) torch.Tensor or array_like
+        The moved cage vertices, same dtype (an array is converted to the weights' dtype
+        and device); a ``(k, 3)`` cage is shared by the batch.
 
     Returns
     -------
@@ -556,13 +559,14 @@ class CageBinding:
         """Number of bound points (per batch element)."""
         return self.weights.shape[-2]
 
-    def deform(self, new_cage_v) -> torch.Tensor:
+    def deform(self, new_cage_v: torch.Tensor | ArrayLike) -> torch.Tensor:
         """Positions of the bound points for moved cage vertices.
 
         Parameters
         ----------
-        new_cage_v : (k, 3) or (B, k, 3) torch.Tensor
-            The cage's vertices after moving them, in the same order.
+        new_cage_v : (k, 3) or (B, k, 3) torch.Tensor or array_like
+            The cage's vertices after moving them, in the same order (as
+            :func:`deform` takes them).
 
         Returns
         -------
@@ -581,7 +585,9 @@ class CageBinding:
         return deform(self.weights, new_cage_v)
 
 
-def bind(points, cage_v, cage_f, method: str = "mvc", chunk_size: int = 2048) -> CageBinding:
+def bind(points: torch.Tensor | ArrayLike, cage_v: torch.Tensor | ArrayLike,
+         cage_f: torch.Tensor | ArrayLike, method: str = "mvc",
+         chunk_size: int = 2048) -> CageBinding:
     """Compute the coordinates of points with respect to a cage (or a batch of cages).
 
     Parameters

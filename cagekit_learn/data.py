@@ -29,8 +29,11 @@ import pathlib
 import secrets
 import warnings
 import zlib
+from collections.abc import Iterable, Sequence
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from cagekit.datasets import synthetic as _synthetic
 from cagekit.errors import CagekitWarning, InputError
@@ -40,6 +43,10 @@ from cagekit.geometry.sampling import sample_surface
 from cagekit.io import SUPPORTED_MESH_EXTENSIONS, load_shape
 from cagekit.io.files import atomic_output
 from cagekit.progress import progress_bar
+from cagekit.typed import Ints
+
+if TYPE_CHECKING:
+    import torch
 
 __all__ = [
     "CACHE_DIRNAME",
@@ -109,7 +116,7 @@ def _is_hidden(name: str) -> bool:
 # --------------------------------------------------------------------------- discovery
 
 
-def find_meshes(root) -> list[pathlib.Path]:
+def find_meshes(root: str | os.PathLike) -> list[pathlib.Path]:
     """Mesh files under a folder, recursively, in a stable order.
 
     Parameters
@@ -190,7 +197,7 @@ class ShapeCollection:
     (2, dtype('float32'))
     """
 
-    def __init__(self, names, points):
+    def __init__(self, names: Iterable[str], points: ArrayLike):
         names = [str(n) for n in names]
         points = np.asarray(points)
         if points.ndim != 3 or points.shape[2] != 3:
@@ -219,7 +226,7 @@ class ShapeCollection:
     # ------------------------------------------------------------------ constructors
 
     @classmethod
-    def from_arrays(cls, names, points) -> ShapeCollection:
+    def from_arrays(cls, names: Iterable[str], points: ArrayLike) -> ShapeCollection:
         """A collection from given names and point samples (copied, as float32).
 
         Parameters
@@ -247,7 +254,8 @@ class ShapeCollection:
         return cls(list(names), np.array(points, dtype=np.float32, copy=True))
 
     @classmethod
-    def corresponding(cls, root, points=1024, seed=0) -> ShapeCollection:
+    def corresponding(cls, root: str | os.PathLike, points: int = 1024,
+                      seed: int = 0) -> ShapeCollection:
         """Samples in correspondence, for the L2 alignment loss (``--align l2``).
 
         Every mesh under ``root`` must have the same vertex count (a collection with
@@ -291,8 +299,8 @@ class ShapeCollection:
         return collection
 
     @classmethod
-    def synthetic(cls, family="chairs", n=32, seed=0, points=1024,
-                  resolution=1.0) -> ShapeCollection:
+    def synthetic(cls, family: str = "chairs", n: int = 32, seed: int = 0, points: int = 1024,
+                  resolution: float = 1.0) -> ShapeCollection:
         """Built-in data: shapes of a procedural family, normalised and sampled.
 
         Parameters
@@ -340,8 +348,9 @@ class ShapeCollection:
         return cls(names, stack)
 
     @classmethod
-    def from_folder(cls, root, points=1024, seed=0, cache_dir=None,
-                    progress=False) -> ShapeCollection:
+    def from_folder(cls, root: str | os.PathLike, points: int = 1024, seed: int = 0,
+                    cache_dir: str | os.PathLike | Literal[False] | None = None,
+                    progress: bool = False) -> ShapeCollection:
         """Every mesh under a folder, normalised and sampled, with an incremental cache.
 
         Parameters
@@ -484,7 +493,8 @@ class FixedSource:
         Its normalisation: ``normalised = (V - center) / scale``.
     """
 
-    def __init__(self, path, points, rows, vertex_count, center, scale):
+    def __init__(self, path: str | os.PathLike, points: ArrayLike, rows: ArrayLike | None,
+                 vertex_count: int, center: ArrayLike, scale: float):
         self.path = str(path)
         self.points = np.ascontiguousarray(points, dtype=np.float32)
         self.rows = None if rows is None else np.asarray(rows, dtype=np.int64)
@@ -496,8 +506,8 @@ class FixedSource:
         return f"FixedSource({self.path!r}, {len(self.points)} points)"
 
     @classmethod
-    def from_file(cls, path, points=1024, seed=0, corresponding=False,
-                  vertex_count=None) -> FixedSource:
+    def from_file(cls, path: str | os.PathLike, points: int = 1024, seed: int = 0,
+                  corresponding: bool = False, vertex_count: int | None = None) -> FixedSource:
         """Read and sample a template mesh.
 
         Parameters
@@ -621,7 +631,8 @@ class SampleCache:
         self.folder, self.explicit = folder, explicit
 
     @classmethod
-    def for_folder(cls, root: pathlib.Path, cache_dir) -> SampleCache | None:
+    def for_folder(cls, root: pathlib.Path,
+                   cache_dir: str | os.PathLike | Literal[False] | None) -> SampleCache | None:
         """The cache of ``root`` (``cache_dir`` as ``from_folder`` takes it), or None."""
         if cache_dir is False:
             return None
@@ -637,7 +648,7 @@ class SampleCache:
             raise InputError("cache folder is not writable", folder)
         return cls(folder, explicit=True)
 
-    def read(self, points: int, seed: int):
+    def read(self, points: int, seed: int) -> dict[str, Any] | None:
         """The cache's entries when it is valid for ``(points, seed)``, else None."""
         cache = self.folder
         manifest_path, samples_path = cache / _MANIFEST_FILE, cache / _SAMPLES_FILE
@@ -671,7 +682,7 @@ class SampleCache:
                           stacklevel=3)
             return None
 
-    def write(self, manifest: dict, names, stack) -> None:
+    def write(self, manifest: dict, names: Sequence[str], stack: ArrayLike) -> None:
         """Write samples then manifest atomically; warn (default cache) or raise (explicit)."""
         cache, explicit = self.folder, self.explicit
         token = secrets.token_hex(8)
@@ -761,7 +772,7 @@ def fixed_source_pairs(n_targets: int, epoch: int, seed: int = 0) -> np.ndarray:
     return np.stack([np.full(n, FIXED_SOURCE, dtype=np.int64), targets], axis=1)
 
 
-def shard(pairs, rank: int, world_size: int) -> np.ndarray:
+def shard(pairs: ArrayLike, rank: int, world_size: int) -> Ints:
     """One rank's share of the pairs for DistributedDataParallel.
 
     Parameters
@@ -807,7 +818,8 @@ def shard(pairs, rank: int, world_size: int) -> np.ndarray:
 # ------------------------------------------------------------------------ augmentation
 
 
-def augment(points, rng, low=0.75, high=1.25) -> np.ndarray:
+def augment(points: ArrayLike, rng: np.random.Generator | int, low: float = 0.75,
+            high: float = 1.25) -> np.ndarray:
     """The paper's augmentation: scale each axis at random, then re-normalise.
 
     Parameters
@@ -840,8 +852,10 @@ def augment(points, rng, low=0.75, high=1.25) -> np.ndarray:
     return Frame.of(scaled).to_unit(scaled).astype(np.float32)
 
 
-def make_batch(collection, pairs, *, epoch, step, seed=0, augmentation=True,
-               dtype=None, source_points=None) -> dict:
+def make_batch(collection: ShapeCollection | ArrayLike, pairs: ArrayLike, *, epoch: int,
+               step: int, seed: int = 0, augmentation: bool = True,
+               dtype: torch.dtype | None = None,
+               source_points: ArrayLike | None = None) -> dict[str, torch.Tensor]:
     """Tensors of one training step.
 
     Parameters
@@ -891,12 +905,13 @@ def make_batch(collection, pairs, *, epoch, step, seed=0, augmentation=True,
     if pairs.ndim != 2 or pairs.shape[1] != 2 or not np.issubdtype(pairs.dtype, np.integer):
         raise InputError(f"pairs must be a (b, 2) integer array, got {pairs.dtype} "
                          f"{pairs.shape}")
-    fixed = source_points is not None
-    if fixed:
-        source_points = np.asarray(source_points, dtype=np.float32)
-        if source_points.shape != data.shape[1:]:
+    fixed_points = (None if source_points is None
+                    else np.asarray(source_points, dtype=np.float32))
+    fixed = fixed_points is not None
+    if fixed_points is not None:
+        if fixed_points.shape != data.shape[1:]:
             raise InputError(f"source_points must have shape {data.shape[1:]} (as every "
-                             f"shape), got {source_points.shape}")
+                             f"shape), got {fixed_points.shape}")
         if len(pairs) and (pairs[:, 0] != FIXED_SOURCE).any():
             raise InputError(f"with source_points every source index must be "
                              f"{FIXED_SOURCE} (fixed_source_pairs)")
@@ -910,8 +925,8 @@ def make_batch(collection, pairs, *, epoch, step, seed=0, augmentation=True,
     seed, epoch, step = as_count(seed, "seed"), as_count(epoch, "epoch"), as_count(step, "step")
     pairs = pairs.astype(np.int64)
     target = data[pairs[:, 1]]
-    if fixed:
-        source = np.repeat(source_points[None], len(pairs), axis=0)
+    if fixed_points is not None:
+        source = np.repeat(fixed_points[None], len(pairs), axis=0)
         if augmentation:
             target = target.copy()
             for i, t in enumerate(pairs[:, 1].tolist()):

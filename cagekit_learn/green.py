@@ -19,6 +19,7 @@ import math
 
 import numpy as np
 import torch
+from numpy.typing import ArrayLike
 
 from cagekit.cage import cage_topology
 from cagekit.coords import green as core
@@ -100,7 +101,9 @@ def _raw_chunk(X, V, faces, edges, face_edges, face_signs, terms):
     return phi, psi
 
 
-def green_coordinates(points, cage_v, cage_f, chunk_size: int = 1024):
+def green_coordinates(points: torch.Tensor, cage_v: torch.Tensor,
+                      cage_f: torch.Tensor | ArrayLike,
+                      chunk_size: int = 1024) -> tuple[torch.Tensor, torch.Tensor]:
     """Green coordinates of points, differentiable in the points and the cage vertices.
 
     Parameters
@@ -178,7 +181,8 @@ def _extend(X, V, faces, normals, plan, phi, psi):
     return phi + add_phi, psi + add_psi
 
 
-def stretch_factors(rest_v: torch.Tensor, new_v: torch.Tensor, faces) -> torch.Tensor:
+def stretch_factors(rest_v: torch.Tensor, new_v: torch.Tensor,
+                    faces: ArrayLike) -> torch.Tensor:
     """:func:`cagekit.coords.green.stretch_factors` in torch (differentiable in ``new_v``
     and ``rest_v``)."""
     f = torch.as_tensor(np.asarray(faces, dtype=np.int64), device=new_v.device)
@@ -193,7 +197,8 @@ def stretch_factors(rest_v: torch.Tensor, new_v: torch.Tensor, faces) -> torch.T
     return inside.sqrt() / (math.sqrt(2.0) * twice)
 
 
-def green_deform(phi, psi, rest_v, new_v, faces) -> torch.Tensor:
+def green_deform(phi: torch.Tensor, psi: torch.Tensor, rest_v: torch.Tensor,
+                 new_v: torch.Tensor, faces: ArrayLike) -> torch.Tensor:
     """Deformed points ``phi @ new_v + psi @ (s * n')``, differentiable in everything.
 
     Parameters

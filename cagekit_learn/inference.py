@@ -34,6 +34,7 @@ from cagekit.errors import CagekitWarning, InputError
 from cagekit.geometry import as_shape
 from cagekit.geometry.frame import Frame
 from cagekit.geometry.sampling import sample_surface
+from cagekit.typed import Vertices
 from cagekit_learn.networks import NeuralCages
 from cagekit_learn.train import load_model
 
@@ -42,7 +43,8 @@ __all__ = ["ModelDeformer", "predict", "predict_fixed_source", "predict_cages",
 
 
 
-def predict(model: NeuralCages, source_points, target_points) -> tuple[np.ndarray, np.ndarray]:
+def predict(model: NeuralCages, source_points: ArrayLike,
+            target_points: ArrayLike) -> tuple[Vertices, Vertices]:
     """Predicted source cage and deformed cage for one pair of normalised clouds.
 
     Parameters
@@ -65,7 +67,8 @@ def predict(model: NeuralCages, source_points, target_points) -> tuple[np.ndarra
             out["deformed_cage"][0].double().cpu().numpy())
 
 
-def predict_fixed_source(model: NeuralCages, target_points) -> tuple[np.ndarray, np.ndarray]:
+def predict_fixed_source(model: NeuralCages,
+                         target_points: ArrayLike) -> tuple[Vertices, Vertices]:
     """Source cage and deformed cage for a model trained with a fixed source.
 
     Parameters
@@ -92,13 +95,14 @@ def predict_fixed_source(model: NeuralCages, target_points) -> tuple[np.ndarray,
     InputError
         The model has no fixed source, or the target points are not (P, 3).
     """
-    if getattr(model, "fixed_source", None) is None:
+    fixed = getattr(model, "fixed_source", None)
+    if fixed is None:
         raise InputError("the model was not trained with a fixed source (cagekit train "
                          "--fixed-source); use predict(model, source_points, target_points)")
     target = np.asarray(target_points, dtype=np.float64)
     if target.ndim != 2 or target.shape[1] != 3 or len(target) < 1:
         raise InputError(f"target points must have shape (P, 3), got {target.shape}")
-    return predict(model, model.fixed_source.cpu().numpy(), target)
+    return predict(model, fixed.cpu().numpy(), target)
 
 
 def _predicted(model, Vs, Fs, Vt, Ft, points, seed):
@@ -266,7 +270,7 @@ class ModelDeformer:
 
     def __init__(self, path: str, refine: bool = False):
         self.path, self.refine = path, bool(refine)
-        self._model = None
+        self._model: tuple[NeuralCages, int] | None = None
 
     def __getstate__(self):
         return {"path": self.path, "refine": self.refine, "_model": None}

@@ -19,6 +19,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import torch
+from numpy.typing import ArrayLike
 from torch.autograd.function import once_differentiable
 
 from cagekit.deformation.terms import (  # the paper's weights and the plane test, defined once
@@ -206,7 +207,8 @@ def symmetry_loss(P: torch.Tensor, axis: str, *,
     return chamfer_loss(P, mirror(P, axis), max_elements=max_elements)
 
 
-def cage_symmetry_loss(C: torch.Tensor, partner, offset, axis: str) -> torch.Tensor:
+def cage_symmetry_loss(C: torch.Tensor, partner: torch.Tensor | ArrayLike,
+                       offset: torch.Tensor | ArrayLike, axis: str) -> torch.Tensor:
     """Change of each cage vertex's offset from its rest mirror partner.
 
     Parameters
@@ -330,7 +332,7 @@ class ShapeReference(NamedTuple):
     """
 
     own: torch.Tensor
-    index: torch.Tensor
+    index: torch.Tensor  # type: ignore[assignment]  # a field named as tuple.index, on purpose
     mask: torch.Tensor
     normals: torch.Tensor
     distances: torch.Tensor
@@ -388,7 +390,7 @@ class _SmallestEigenvector(torch.autograd.Function):
         return G
 
 
-def _as_rows(value, shape, dtype, device, what):
+def _as_rows(value, shape, dtype, device, what) -> torch.Tensor:
     t = torch.as_tensor(value, dtype=dtype, device=device)
     if t.ndim == len(shape) - 1 and tuple(t.shape) == tuple(shape[1:]):
         t = t.expand(*shape)
@@ -399,7 +401,9 @@ def _as_rows(value, shape, dtype, device, what):
 
 
 @torch.no_grad()
-def shape_reference(X: torch.Tensor, index, mask=None, own=None) -> ShapeReference:
+def shape_reference(X: torch.Tensor, index: torch.Tensor | ArrayLike,
+                    mask: torch.Tensor | ArrayLike | None = None,
+                    own: torch.Tensor | ArrayLike | None = None) -> ShapeReference:
     """Rest normals and point-to-plane distances of the given neighbourhoods.
 
     Parameters

@@ -16,6 +16,7 @@ docs/architecture.md.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -135,7 +136,7 @@ class VertexDecoder(nn.Module):
     0.0
     """
 
-    def __init__(self, code_size: int, widths=(256, 128, 64)):
+    def __init__(self, code_size: int, widths: Sequence[int] = (256, 128, 64)):
         super().__init__()
         layers, size = [], 3 + code_size
         for width in widths:
@@ -143,7 +144,8 @@ class VertexDecoder(nn.Module):
             size = width
         last = nn.Conv1d(size, 3, 1)
         nn.init.zeros_(last.weight)
-        nn.init.zeros_(last.bias)
+        if last.bias is not None:  # a Conv1d has one by default
+            nn.init.zeros_(last.bias)
         self.layers = nn.Sequential(*layers, last)
 
     def forward(self, vertices: torch.Tensor, code: torch.Tensor) -> torch.Tensor:
@@ -176,6 +178,10 @@ class NeuralCages(nn.Module):
     >>> out["source_cage"].shape, out["deformed_cage"].shape
     (torch.Size([2, 42, 3]), torch.Size([2, 42, 3]))
     """
+
+    template: torch.Tensor
+    cage_f: torch.Tensor
+    fixed_source: torch.Tensor | None
 
     def __init__(self, config: ModelConfig | None = None):
         super().__init__()

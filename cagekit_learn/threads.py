@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+from collections.abc import Iterator
 
 import torch
 
@@ -10,7 +11,7 @@ __all__ = ["one_thread"]
 
 
 @contextlib.contextmanager
-def one_thread():
+def one_thread() -> Iterator[None]:
     """Run torch on one thread for the duration of the block, then restore the count.
 
     For tiny tensors (80 landmarks in a 100-vertex cage, a test's small model) one thread

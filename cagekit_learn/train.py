@@ -46,6 +46,7 @@ from cagekit.errors import CagekitWarning, InputError
 from cagekit.geometry import as_count
 from cagekit.geometry.frame import Frame
 from cagekit.progress import progress_bar, progress_enabled
+from cagekit.typed import Ints
 from cagekit_learn import losses
 from cagekit_learn.checkpoint import (
     CHECKPOINT_NAME,
@@ -98,8 +99,9 @@ class TrainConfig:
         (default 64) procedural chairs, tables or vases.
     run_dir : str
         Where the checkpoint, the log and the config go.
-    epochs, batch_size, lr : int, int, float
-        ``lr`` in ``(0, MAX_LR]`` (:data:`MAX_LR`, 1).
+    epochs, batch_size, lr : int or None, int, float
+        ``lr`` in ``(0, MAX_LR]`` (:data:`MAX_LR`, 1). ``epochs`` None: a resumed run's
+        own (:func:`train` with ``resume``); a new run needs a number.
     points : int
         Samples per shape.
     seed : int
@@ -128,7 +130,7 @@ class TrainConfig:
 
     data: str
     run_dir: str
-    epochs: int = 100
+    epochs: int | None = 100
     batch_size: int = 8
     lr: float = 1e-3
     points: int = 1024
@@ -197,7 +199,8 @@ def load_collection(data: str, points: int, seed: int, progress: bool = False,
     return ShapeCollection.from_folder(data, points=points, seed=seed, progress=progress)
 
 
-def load_source_cage(cage_path, template=None) -> tuple[list, list]:
+def load_source_cage(cage_path: str | os.PathLike,
+                     template: str | os.PathLike | None = None) -> tuple[list, list]:
     """A fixed source cage from a mesh file, in the normalised source frame.
 
     Parameters
@@ -254,6 +257,8 @@ def _with_fixed_source(config: TrainConfig, collection: ShapeCollection) -> Trai
         if l2 and getattr(collection, "vertex_count", None) is None:
             raise InputError("the L2 alignment with a fixed source needs a collection in "
                              "correspondence (ShapeCollection.corresponding)")
+        # the caller passes a config without stored samples only with a template file
+        assert config.fixed_source is not None
         source = FixedSource.from_file(config.fixed_source, points=config.points,
                                        seed=config.seed, corresponding=l2,
                                        vertex_count=getattr(collection, "vertex_count",
@@ -289,7 +294,8 @@ def _unwrap(model):
     return model.module if hasattr(model, "module") else model
 
 
-def training_loss(model, source, target, config: TrainConfig, knn: int = 16):
+def training_loss(model: torch.nn.Module, source: torch.Tensor, target: torch.Tensor,
+                  config: TrainConfig, knn: int = 16) -> tuple[torch.Tensor, dict[str, float]]:
     """The training loss of one batch.
 
     Parameters
@@ -432,7 +438,7 @@ def _template_partners(net, axis):
 _OWNED_GROUP: list = []
 
 
-def _distributed(device: str):
+def _distributed(device: str | None):
     """(rank, world size, local rank); initialises the process group under torchrun."""
     world = int(os.environ.get("WORLD_SIZE", "1"))
     if world <= 1:
@@ -446,7 +452,7 @@ def _distributed(device: str):
     return dist.get_rank(), dist.get_world_size(), int(os.environ.get("LOCAL_RANK", "0"))
 
 
-def _device(name: str, local_rank: int) -> torch.device:
+def _device(name: str | None, local_rank: int) -> torch.device:
     if name == "auto":
         name = "cuda" if torch.cuda.is_available() else "cpu"
     if name == "cuda":
@@ -544,7 +550,7 @@ class _Log:
             self.board = None
 
     def write(self, row: dict) -> None:
-        if not self.active:
+        if not self.active or self.writer is None or self.handle is None:
             return
         self.writer.writerow({k: row.get(k, "") for k in self.columns})
         self.handle.flush()
@@ -624,7 +630,8 @@ def _model_of(payload: dict, path) -> NeuralCages:
     return model
 
 
-def load_model(path, map_location="cpu") -> tuple[NeuralCages, dict]:
+def load_model(path: str | os.PathLike,
+               map_location: str | torch.device = "cpu") -> tuple[NeuralCages, dict]:
     """A trained model (in eval mode) and its checkpoint from a file or run folder.
 
     Raises :class:`cagekit.InputError` naming the file for a checkpoint that cannot be
@@ -697,7 +704,7 @@ def _same_model(model: dict, model_config: dict) -> None:
                          f"{', '.join(differ)}: the file is damaged")
 
 
-def resume_config(run_dir) -> TrainConfig:
+def resume_config(run_dir: str | os.PathLike) -> TrainConfig:
     """The config a resumed run of ``run_dir`` continues with, its checkpoint validated.
 
     Parameters
@@ -719,7 +726,7 @@ def resume_config(run_dir) -> TrainConfig:
     return _resumable(load_checkpoint(path), path)
 
 
-def fixed_source_matches(path, model: dict) -> bool:
+def fixed_source_matches(path: str | os.PathLike, model: dict) -> bool:
     """Whether the mesh at ``path`` is the fixed source a model config stores.
 
     The same vertex count and normalisation and, when the model took vertex rows (L2
@@ -762,7 +769,7 @@ def fixed_source_matches(path, model: dict) -> bool:
                                             atol=1e-6))
 
 
-def source_cage_matches(path, model: dict) -> bool:
+def source_cage_matches(path: str | os.PathLike, model: dict) -> bool:
     """Whether the cage file at ``path`` is the fixed source cage a model config stores.
 
     Parameters
@@ -806,6 +813,8 @@ def _optimizer(net: NeuralCages, config: TrainConfig) -> torch.optim.Adam:
 
 
 def _check(config: TrainConfig) -> None:
+    if config.epochs is None:
+        raise InputError("epochs must be given for a new run (None keeps a resumed run's)")
     for name in ("epochs", "batch_size", "points", "checkpoint_every"):
         if int(getattr(config, name)) < 1:
             raise InputError(f"{name} must be at least 1, got {getattr(config, name)}")
@@ -906,7 +915,7 @@ class Trainer:
         self.warned = False
         if payload is not None:
             self._restore(payload)
-        self.model = self.net
+        self.model: torch.nn.Module = self.net
         if self.world > 1:
             from torch.nn.parallel import DistributedDataParallel
 
@@ -918,10 +927,11 @@ class Trainer:
             raise InputError(f"{len(collection)} shapes give no full batch of "
                              f"{config.batch_size} per rank ({self.world} ranks): lower "
                              "--batch-size")
-        self.total_steps = self.steps_per_epoch * config.epochs
+        self.total_steps = self.steps_per_epoch * int(config.epochs or 0)  # _check: not None
         if config.max_steps is not None:
             self.total_steps = min(self.total_steps, config.max_steps)
-        self.trained_pairs, self.last = 0, {}
+        self.trained_pairs = 0
+        self.last: dict[str, float] = {}
 
     def _resumed_config(self, config, payload) -> TrainConfig:
         """The checkpoint's config (validated) with the caller's data, budget and device."""
@@ -946,7 +956,7 @@ class Trainer:
                              f"number (now {self.world}) so that it continues exactly",
                              str(path))
 
-    def pairs_of(self, epoch: int):
+    def pairs_of(self, epoch: int) -> Ints:
         """The (source, target) index pairs of an epoch, before sharding."""
         if self.fixed is not None:
             return fixed_source_pairs(len(self.collection), epoch, self.config.seed)

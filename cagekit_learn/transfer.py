@@ -4,17 +4,23 @@ per-pair fit of :func:`cagekit.transfer.template_cage_classical`."""
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from cagekit.errors import InputError
 from cagekit.geometry import as_vertices
 from cagekit.geometry.frame import Frame
+from cagekit.typed import Vertices
 from cagekit_learn.inference import predict_cages
+from cagekit_learn.networks import NeuralCages
 
 __all__ = ["check_model", "template_cage_learned"]
 
 
-def check_model(model, template_v, cage_v, path=None) -> None:
+def check_model(model: NeuralCages, template_v: ArrayLike, cage_v: ArrayLike,
+                path: str | os.PathLike | None = None) -> None:
     """Raise :class:`InputError` (naming ``path``) unless ``model`` was trained with
     ``template_v`` as its fixed source and ``cage_v`` as its fixed cage."""
     config = model.config
@@ -30,7 +36,8 @@ def check_model(model, template_v, cage_v, path=None) -> None:
                          "template)", path)
 
 
-def template_cage_learned(model, template_v, cage_v, pose) -> np.ndarray:
+def template_cage_learned(model: NeuralCages, template_v: ArrayLike, cage_v: ArrayLike,
+                          pose: tuple[ArrayLike, ArrayLike]) -> Vertices:
     """The template's deformed cage ``C_(s->t)`` predicted by a fixed-source network.
 
     Parameters
@@ -57,6 +64,8 @@ def template_cage_learned(model, template_v, cage_v, pose) -> np.ndarray:
         The model has no fixed source or was trained with another cage.
     """
     check_model(model, template_v, cage_v)
-    points = len(model.config.fixed_source_points)
+    fixed = model.config.fixed_source_points
+    assert fixed is not None  # check_model refuses a model without one
+    points = len(fixed)
     return predict_cages(model, np.asarray(template_v, np.float64), None, *pose,
                          points=points)[1]

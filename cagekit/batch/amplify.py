@@ -30,19 +30,23 @@ import sys
 import threading
 import time
 import warnings
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any, TypeAlias, cast
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from cagekit.batch.collection import SYNTHETIC_PREFIX, Shape, file_hash, find_shapes, load_shape_of
 from cagekit.cage.fitting import fit_cage
-from cagekit.deformation import DeformOptions, deform
+from cagekit.deformation import DeformOptions, DeformResult, deform
 from cagekit.errors import CagekitWarning, InputError
 from cagekit.geometry.frame import Frame
 from cagekit.interrupts import sigint_deferred
 from cagekit.io import load_mesh, save_mesh
 from cagekit.io.files import atomic_output, one_line, read_text
 from cagekit.metrics import evaluate
+from cagekit.typed import Faces, Vertices
 
 __all__ = ["COLUMNS", "COORDS", "MAX_CD", "MAX_NONAFFINITY", "METHODS", "SHEET_COLUMNS", "Item",
            "amplify", "contact_sheet", "deform_item", "plan_pairs", "prepare_worker",
@@ -66,6 +70,10 @@ _FIGURES = ("cd", "dcotlap", "parts", "part_nonaffinity_median", "part_nonaffini
             "planarity_p95_deg")
 #: the cage ``deform`` fits for a source (as :func:`cagekit.deform` does by default)
 CAGE_FACES = 200
+
+#: a trained model's deformation, ``deformer(V_src, F_src, V_tgt, F_tgt, seed)``
+#: (:class:`cagekit_learn.inference.ModelDeformer`)
+_Deformer: TypeAlias = Callable[[Vertices, Faces, Vertices, Faces, int], DeformResult]
 
 
 @dataclass(frozen=True)
@@ -110,7 +118,8 @@ def _read_pairs(path, by_name):
     return [(by_name[a], by_name[b]) for a, b in pairs]
 
 
-def plan_pairs(shapes, *, variations=None, pairs=None, category_by=None,
+def plan_pairs(shapes: Sequence[Shape], *, variations: int | None = None,
+               pairs: str | None = None, category_by: str | None = None,
                seed: int = 0) -> list[tuple[Shape, Shape]]:
     """The (source, target) pairs of a batch, in manifest order.
 
@@ -161,7 +170,7 @@ def plan_pairs(shapes, *, variations=None, pairs=None, category_by=None,
     if pairs == "all":
         picks = np.arange(total)
     else:
-        count = int(variations)
+        count = int(cast(int, variations))  # not None: checked with pairs above
         if count < 1 or count > total:
             raise InputError(f"variations must be between 1 and {total} (the distinct "
                              f"ordered pairs of this collection), got {variations}")
@@ -217,8 +226,9 @@ def _cage_files(shapes) -> dict[str, str]:
 # ------------------------------------------------------------------------------ one item
 
 
-def deform_item(source: str, target: str, method: str = "cage", seed: int = 0, cage=None,
-                deformer=None, coords: str = "mvc") -> dict:
+def deform_item(source: str, target: str, method: str = "cage", seed: int = 0,
+                cage: tuple[ArrayLike, ArrayLike] | None = None,
+                deformer: _Deformer | None = None, coords: str = "mvc") -> dict[str, Any]:
     """Make one variation: a pure function of its arguments, run by a worker.
 
     BLAS runs single-threaded inside (``threadpoolctl``): OpenBLAS's results depend on its
@@ -255,7 +265,8 @@ def deform_item(source: str, target: str, method: str = "cage", seed: int = 0, c
         thread other than the main one leaves its warnings where they are issued).
     """
     start = time.perf_counter()
-    out = {"status": "failed", "error": "", "cage": None, "cage_seconds": 0.0}
+    out: dict[str, Any] = {"status": "failed", "error": "", "cage": None,
+                           "cage_seconds": 0.0}
     with _recorded_warnings() as caught:
         try:
             figures, result, Fs = _limited(source, target, method, seed, cage, deformer,
@@ -469,12 +480,13 @@ class _Cages:
 
 
 def amplify(collection: str, out_dir: str, *, variations: int | None = None,
-            pairs: str | None = None, method: str = "cage", deformer=None,
+            pairs: str | None = None, method: str = "cage", deformer: _Deformer | None = None,
             category_by: str | None = None, seed: int = 0, workers: int | None = None,
             executor: cf.Executor | None = None, max_nonaffinity: float = MAX_NONAFFINITY,
             max_cd: float = MAX_CD, drop_rejected: bool = False,
-            contact_sheet_path: str | None = None, progress=None,
-            coords: str = "mvc") -> list[dict]:
+            contact_sheet_path: str | None = None,
+            progress: Callable[[int, int], object] | None = None,
+            coords: str = "mvc") -> list[dict[str, Any]]:
     """Make variations of a collection; resume an earlier run in the same folder.
 
     Parameters
@@ -964,7 +976,8 @@ class _Runner:
 # ------------------------------------------------------------------------ contact sheet
 
 
-def contact_sheet(rows, items, folder, path, limit: int = 24) -> str:
+def contact_sheet(rows: Sequence[dict[str, Any]], items: Sequence[Item], folder: str, path: str,
+                  limit: int = 24) -> str:
     """A PNG grid: source, target and variation of the first ``limit`` finished items.
 
     Items stand :data:`SHEET_COLUMNS` to a line; each one's caption names the pair (long

@@ -10,13 +10,20 @@ pool. Imported only when a cluster is asked for; the ``cluster`` extra installs 
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
 from cagekit.batch.amplify import worker_count
 from cagekit.errors import InputError
+
+if TYPE_CHECKING:
+    from distributed import Client
 
 __all__ = ["close", "connect"]
 
 
-def connect(address: str, workers: int | None = None, setup=None):
+def connect(address: str, workers: int | None = None,
+            setup: Callable[[], object] | None = None) -> Client:
     """A Dask client: of a new local cluster (``"local"``) or of a running scheduler.
 
     Parameters
@@ -88,7 +95,7 @@ def _Setup(function):
     return Setup()
 
 
-def close(client) -> None:
+def close(client: Client) -> None:
     """Close a client from :func:`connect`, and its local cluster if it made one."""
     cluster = client.cluster
     client.close()

@@ -38,7 +38,8 @@ def _one_side(A, B):
 
 
 @numba.njit(cache=True)
-def candidate_pairs(C, T, skip):
+def candidate_pairs(C: np.ndarray, T: np.ndarray,
+                    skip: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(cage faces, input faces) of the pairs that may intersect; see
     :func:`cagekit.cage.fitting._candidate_pairs`. ``C`` (c, 3, 3), ``T`` (m, 3, 3)."""
     c = C.shape[0]

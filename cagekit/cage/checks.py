@@ -18,16 +18,18 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from cagekit.cage.topology import cage_topology, face_components, signed_volume
 from cagekit.errors import CageError, CagekitWarning, InputError
+from cagekit.typed import Bools, Faces, Floats
 
 __all__ = ["check_cage", "self_intersecting_faces", "warn_self_intersecting",
            "cage_encloses", "winding_numbers", "distance_in_diagonals"]
 
 
-def check_cage(cage_v, cage_f, name: str | None = None, *,
-               intersections: bool = True) -> np.ndarray:
+def check_cage(cage_v: ArrayLike, cage_f: ArrayLike, name: str | None = None, *,
+               intersections: bool = True) -> Faces:
     """Validate a cage and return its faces oriented outward.
 
     Parameters
@@ -158,7 +160,7 @@ def _check_manifold_vertices(faces, name):
                         "2-manifold surface", name)
 
 
-def self_intersecting_faces(cage_v, cage_f) -> np.ndarray:
+def self_intersecting_faces(cage_v: ArrayLike, cage_f: ArrayLike) -> Bools:
     """Which faces of a triangle mesh intersect another of its faces (exact test).
 
     Faces that only share a vertex or an edge do not count. Uses pymeshlab's
@@ -196,7 +198,7 @@ def self_intersecting_faces(cage_v, cage_f) -> np.ndarray:
     return np.asarray(ms.current_mesh().face_selection_array(), dtype=bool)
 
 
-def warn_self_intersecting(cage_v, cage_f, name: str = "the cage") -> int:
+def warn_self_intersecting(cage_v: ArrayLike, cage_f: ArrayLike, name: str = "the cage") -> int:
     """Warn when a (moved) cage intersects itself: the shape it carries folds over.
 
     A deformed cage is not refused for it (the coordinates are still defined; the user
@@ -223,15 +225,16 @@ def warn_self_intersecting(cage_v, cage_f, name: str = "the cage") -> int:
     >>> warn_self_intersecting(v, f)
     0
     """
-    crossing = int(self_intersecting_faces(cage_v, cage_f).sum())
+    crossing_faces = self_intersecting_faces(cage_v, cage_f)  # one flag per face
+    crossing = int(crossing_faces.sum())
     if crossing:
         warnings.warn(CagekitWarning(
-            f"{name}: the cage intersects itself ({crossing} of its {len(cage_f)} faces "
+            f"{name}: the cage intersects itself ({crossing} of its {len(crossing_faces)} faces "
             "cross another face); the shape it carries folds over"), stacklevel=2)
     return crossing
 
 
-def winding_numbers(points, cage_v, cage_f) -> np.ndarray:
+def winding_numbers(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike) -> Floats:
     """Generalised winding number of a closed cage at each point (libigl).
 
     Parameters
@@ -253,7 +256,8 @@ def winding_numbers(points, cage_v, cage_f) -> np.ndarray:
                                          np.ascontiguousarray(cage_f, dtype=np.int64), p))
 
 
-def cage_encloses(points, cage_v, cage_f, threshold: float = 0.5) -> bool:
+def cage_encloses(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike,
+                  threshold: float = 0.5) -> bool:
     """Whether every point lies inside (or on) the cage.
 
     Uses libigl's generalised winding number: a point counts as enclosed when its winding
@@ -300,7 +304,7 @@ def _finite_rows(rows, what: str) -> np.ndarray:
     return a
 
 
-def distance_in_diagonals(points, cage_v) -> np.ndarray:
+def distance_in_diagonals(points: ArrayLike, cage_v: ArrayLike) -> Floats:
     """Distance of each point from the centre of the cage's bounding box, in diagonals.
 
     Computed without overflow (``hypot``), so that points at 1e300 get a finite value.

@@ -13,9 +13,16 @@ stays free of it whatever the energy asks.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from cagekit.cage import self_intersecting_faces
+from cagekit.typed import Floats, Vertices
+
+if TYPE_CHECKING:
+    import scipy.sparse
 
 __all__ = ["SelfContact", "minimise_with_contact", "DHAT", "STIFFNESS"]
 
@@ -53,7 +60,7 @@ class SelfContact:
     True
     """
 
-    def __init__(self, rest_v, faces, dhat: float = DHAT):
+    def __init__(self, rest_v: ArrayLike, faces: ArrayLike, dhat: float = DHAT) -> None:
         import ipctk
 
         # ipctk's threads sum the barrier's terms in varying orders: one thread makes a
@@ -86,7 +93,7 @@ class SelfContact:
         collisions.build(self.mesh, V, self.dhat if reach is None else reach)
         return collisions
 
-    def clearance(self, cage_v) -> float:
+    def clearance(self, cage_v: ArrayLike) -> float:
         """The smallest distance between two non-adjacent elements (0 where they touch).
 
         Examples
@@ -102,12 +109,12 @@ class SelfContact:
             return np.inf
         return float(np.sqrt(collisions.compute_minimum_distance(self.mesh, V)))
 
-    def energy(self, cage_v) -> float:
+    def energy(self, cage_v: ArrayLike) -> float:
         """The barrier (0 when no two elements are within ``dhat``; inf at contact)."""
         V = np.asfortranarray(cage_v, dtype=np.float64)
         return float(self.potential(self._collisions(V), self.mesh, V))
 
-    def gradient_and_hessian(self, cage_v):
+    def gradient_and_hessian(self, cage_v: ArrayLike) -> tuple[Floats, scipy.sparse.spmatrix]:
         """``((k, 3) gradient, (3k, 3k) sparse Hessian projected to be PSD)``, rows in
         vertex order (x, y, z of vertex 0, then vertex 1, ...)."""
         V = np.asfortranarray(cage_v, dtype=np.float64)
@@ -117,22 +124,23 @@ class SelfContact:
                                    self._ipc.PSDProjectionMethod.CLAMP)
         return g, H
 
-    def max_step(self, cage_v, cage_v1) -> float:
+    def max_step(self, cage_v: ArrayLike, cage_v1: ArrayLike) -> float:
         """The largest ``t`` in [0, 1] such that the straight path from ``cage_v`` towards
         ``cage_v1`` is free of intersection up to ``t`` (conservative)."""
         return float(self._ipc.compute_collision_free_stepsize(
             self.mesh, np.asfortranarray(cage_v, dtype=np.float64),
             np.asfortranarray(cage_v1, dtype=np.float64), narrow_phase_ccd=self.ccd))
 
-    def crosses(self, cage_v) -> bool:
+    def crosses(self, cage_v: ArrayLike) -> bool:
         """Whether two faces intersect (exact predicates,
         :func:`cagekit.cage.self_intersecting_faces`): the check behind every step."""
 
         return bool(self_intersecting_faces(cage_v, self.faces).any())
 
 
-def minimise_with_contact(H, b, c0: float, start, contact: SelfContact, *,
-                          stiffness: float = STIFFNESS, iterations: int = 2) -> np.ndarray:
+def minimise_with_contact(H: ArrayLike, b: ArrayLike, c0: float, start: ArrayLike,
+                          contact: SelfContact, *, stiffness: float = STIFFNESS,
+                          iterations: int = 2) -> Vertices:
     """Newton steps on ``tr(C^T H C) - 2 tr(C^T b) + c0 + stiffness * barrier(C)``.
 
     Every step is shortened to the collision-free part of its path (continuous collision

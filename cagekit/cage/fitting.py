@@ -33,6 +33,7 @@ from cagekit.errors import CageError, CageFitError, InputError
 from cagekit.geometry import as_shape, face_areas
 from cagekit.geometry.frame import Frame
 from cagekit.geometry.sampling import sample_surface
+from cagekit.typed import Faces, Vertices
 
 __all__ = ["fit_cage", "FittedCage", "cage_report", "CageReport", "template_cage",
            "wrap_input", "check_face_budget", "CageFitError", "METHODS", "MIN_FACES",
@@ -51,7 +52,7 @@ MAX_FACES = 100_000
 TEMPLATE_FACES = 80
 
 
-def check_face_budget(faces) -> int:
+def check_face_budget(faces: int | np.integer) -> int:
     """A cage face budget as an int, or a one-line :class:`InputError`.
 
     Parameters
@@ -81,7 +82,7 @@ def check_face_budget(faces) -> int:
     return int(faces)
 
 
-def template_cage():
+def template_cage() -> tuple[Vertices, Faces]:
     """The paper's template cage: a 42-vertex, 80-face icosphere of radius 1.
 
     Returns
@@ -139,7 +140,7 @@ def _samples(v, f, n, seed):
 _STAND_IN = 1e-4
 
 
-def wrap_input(v, f):
+def wrap_input(v: Vertices, f: ArrayLike) -> tuple[Vertices, Faces]:
     """The triangle soup the alpha wrap is given for a shape: proper triangles only.
 
     pymeshlab's alpha wrap (CGAL 5) crashes the process (a segmentation fault) on input it

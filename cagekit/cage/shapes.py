@@ -7,11 +7,14 @@ Every function returns ``(vertices (k, 3) float64, faces (m, 3) int64)`` for a c
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
+
+from cagekit.typed import Faces, Vertices
 
 __all__ = ["box_cage", "icosphere_cage"]
 
 
-def box_cage(divisions: int = 1, half_extent=1.0):
+def box_cage(divisions: int = 1, half_extent: ArrayLike = 1.0) -> tuple[Vertices, Faces]:
     """A box centred at the origin, each side split into ``divisions x divisions`` squares.
 
     Each square is cut into two triangles, so with ``divisions >= 1`` every diagonal edge lies
@@ -69,7 +72,7 @@ def box_cage(divisions: int = 1, half_extent=1.0):
     return v, np.asarray(faces, dtype=np.int64)
 
 
-def icosphere_cage(subdivisions: int = 1, radius: float = 1.0):
+def icosphere_cage(subdivisions: int = 1, radius: float = 1.0) -> tuple[Vertices, Faces]:
     """An icosphere (the paper's template cage is ``subdivisions=1``: 42 vertices, 80 faces).
 
     Parameters

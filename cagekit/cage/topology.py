@@ -8,6 +8,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
+
+from cagekit.typed import Ints
 
 __all__ = ["CageTopology", "cage_topology", "unique_edges", "face_components",
            "vertex_components", "signed_volume"]
@@ -64,7 +67,7 @@ def cage_topology(cage_f: np.ndarray) -> CageTopology:
     )
 
 
-def unique_edges(faces) -> np.ndarray:
+def unique_edges(faces: ArrayLike) -> Ints:
     """Undirected edges of a triangle mesh, each once: ``cage_topology(faces).edges``.
 
     Parameters

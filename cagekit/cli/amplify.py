@@ -71,9 +71,11 @@ def _pairs_option(ctx, param, value):
 @json_option
 @debug_option
 @click.pass_context
-def amplify(ctx, collection, out, variations, pairs, method, model_path, refine, coords,
-            category_by, seed, workers, cluster, max_nonaffinity, max_cd, drop_rejected,
-            sheet, as_json):
+def amplify(ctx: click.Context, collection: str, out: str, variations: int | None,
+            pairs: str | None, method: str, model_path: str | None, refine: bool, coords: str,
+            category_by: str | None, seed: int, workers: int | None, cluster: str | None,
+            max_nonaffinity: float | None, max_cd: float | None, drop_rejected: bool,
+            sheet: str | None, as_json: bool) -> None:
     """Deform sources of COLLECTION onto targets of it: many plausible variations.
 
     COLLECTION is a folder of meshes (searched recursively; ShapeNet's

@@ -32,7 +32,8 @@ from cagekit.errors import InputError
 @json_option
 @debug_option
 @click.pass_context
-def apply(ctx, mesh, cage, deformed_cage, out, coords, as_json):
+def apply(ctx: click.Context, mesh: str, cage: str, deformed_cage: str, out: str, coords: str,
+          as_json: bool) -> None:
     """Deform MESH by moving its CAGE to DEFORMED_CAGE.
 
     MESH is a mesh or a point cloud; CAGE a closed triangle mesh around it; DEFORMED_CAGE

@@ -37,11 +37,18 @@ import os
 import signal
 import sys
 import traceback
+from collections.abc import Callable, Collection, Iterable, Sequence
+from typing import TYPE_CHECKING, Any, Literal, NoReturn, overload
 
 import click
 
 from cagekit.errors import InputError, exception_chain
 from cagekit.progress import bar_callback, progress_bar, progress_enabled
+
+if TYPE_CHECKING:  # the command line imports no numpy at start-up
+    from numpy.typing import ArrayLike
+
+    from cagekit.typed import Faces, Vertices
 
 __all__ = ["BIND_CHUNK", "COORDINATE_METHODS", "DEFORM_COORDINATE_METHODS", "FIT_METHODS",
            "TEMPLATE_FACES", "MIN_FACES", "MAX_FACES", "Command",
@@ -86,8 +93,18 @@ class OneLineErrors:
     line. The applications in ``apps/`` use it too.
     """
 
-    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True,
-             **extra):
+    @overload
+    def main(self, args: Sequence[str] | None = None, prog_name: str | None = None,
+             complete_var: str | None = None, standalone_mode: Literal[True] = True,
+             **extra: Any) -> NoReturn: ...
+    @overload
+    def main(self, args: Sequence[str] | None = None, prog_name: str | None = None,
+             complete_var: str | None = None, standalone_mode: bool = ...,
+             **extra: Any) -> int: ...
+
+    def main(self, args: Sequence[str] | None = None, prog_name: str | None = None,
+             complete_var: str | None = None, standalone_mode: bool = True,
+             **extra: Any) -> int:
         """Run the command line; exit with 0, 1 (failure), 2 (bad input or usage) or 130
         (interrupted)."""
         args = list(sys.argv[1:] if args is None else args)
@@ -164,8 +181,8 @@ def _print_error(code: int, error: BaseException, message: str, debug: bool,
     ``--debug``)."""
     if debug:
         traceback.print_exception(error, file=sys.stderr)
-    usage = isinstance(error, click.UsageError) and error.ctx is not None
-    where = _CURRENT.get("command", error.ctx.command_path if usage else prog)
+    ctx = error.ctx if isinstance(error, click.UsageError) else None
+    where = _CURRENT.get("command", prog if ctx is None else ctx.command_path)
     # on a terminal, a carriage return overwrites the "^C" it echoed
     start = "\r" if code == 130 and progress_enabled() else ""
     click.echo(f"{start}{where}: error: {one_line(message)}", err=True)
@@ -281,7 +298,8 @@ class Command(OneLineErrors, click.Command):
 class FiniteFloatRange(click.FloatRange):
     """click's FloatRange that also refuses NaN and infinities (which pass its bounds)."""
 
-    def convert(self, value, param, ctx):
+    def convert(self, value: Any, param: click.Parameter | None,
+                ctx: click.Context | None) -> float:
         """The number, or a usage error for NaN, inf or a value out of range."""
         number = super().convert(value, param, ctx)
         if not math.isfinite(number):
@@ -309,7 +327,8 @@ def same_file(a: str, b: str) -> bool:
     return os.path.realpath(a) == os.path.realpath(b)
 
 
-def check_output(out: str, inputs, extensions=None) -> None:
+def check_output(out: str, inputs: Iterable[str | None],
+                 extensions: Collection[str] | None = None) -> None:
     """Refuse (InputError) an output that is an input, a folder, or in a missing folder."""
     for path in inputs:
         if path is not None and same_file(out, path):
@@ -327,7 +346,7 @@ def check_output(out: str, inputs, extensions=None) -> None:
                              f"use one of {', '.join(sorted(extensions))}", out)
 
 
-def shape_writer(out: str, has_faces: bool):
+def shape_writer(out: str, has_faces: bool) -> Callable[[str, ArrayLike, ArrayLike], None]:
     """The :mod:`cagekit.io` function that writes ``out``, checked before any work.
 
     A mesh goes to ``save_mesh`` when the extension is a mesh format, else to
@@ -350,7 +369,8 @@ def shape_writer(out: str, has_faces: bool):
                      f"{', '.join(sorted(allowed))}", out)
 
 
-def bind_with_progress(points, cage_v, cage_f, method: str):
+def bind_with_progress(points: Vertices, cage_v: Vertices, cage_f: Faces,
+                       method: str) -> Callable[[ArrayLike], Vertices]:
     """Bind points to a cage checked already; on a terminal, in chunks behind a progress bar.
 
     Returns a function mapping new cage vertices ``(k, 3)`` to deformed points ``(n, 3)``.
@@ -372,7 +392,7 @@ def bind_with_progress(points, cage_v, cage_f, method: str):
     return lambda new_v: np.concatenate([b.deform(new_v) for b in bindings], axis=0)
 
 
-def emit_json(obj) -> None:
+def emit_json(obj: dict[str, Any]) -> None:
     """Print one JSON object on stdout (non-finite floats become null)."""
 
     def clean(x):

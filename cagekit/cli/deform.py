@@ -157,9 +157,11 @@ def _load_landmark_pair(src_path, tgt_path):
 @json_option
 @debug_option
 @click.pass_context
-def deform(ctx, source, target, out, method, cage_path, faces, save_cage, symmetry,
-           landmarks, weights, reference, target_kind, coords, model_path, refine, preview,
-           up, seed, as_json):
+def deform(ctx: click.Context, source: str, target: str, out: str, method: str,
+           cage_path: str | None, faces: int, save_cage: str | None, symmetry: str,
+           landmarks: tuple[str, str] | None, weights: dict[str, float], reference: str,
+           target_kind: str, coords: str, model_path: str | None, refine: bool,
+           preview: str | None, up: str, seed: int, as_json: bool) -> None:
     """Deform SOURCE so that it takes TARGET's shape, keeping SOURCE's detail.
 
     SOURCE is a mesh (or a point cloud, whose points move); TARGET a mesh or a point

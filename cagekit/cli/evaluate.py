@@ -27,7 +27,8 @@ _EVAL_ROLES = ("source", "target", "deformed")
 @json_option
 @debug_option
 @click.pass_context
-def eval_(ctx, source, target, deformed, samples, seed, as_json):
+def eval_(ctx: click.Context, source: str, target: str, deformed: str, samples: int, seed: int,
+          as_json: bool) -> None:
     """Chamfer distance, dCotLap and structure of DEFORMED (a deformed SOURCE) vs TARGET.
 
     As the paper's evaluation: TARGET is normalised on its own and DEFORMED mapped by the

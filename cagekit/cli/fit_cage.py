@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import time
+from typing import TYPE_CHECKING, cast
 
 import click
 
@@ -21,6 +22,9 @@ from cagekit.cli.common import (
     start_command,
 )
 from cagekit.errors import InputError
+
+if TYPE_CHECKING:
+    from cagekit.cage.fitting import CageReport
 
 
 @click.command(name="fit-cage", short_help="Build a guaranteed cage around a mesh or cloud.")
@@ -45,7 +49,8 @@ from cagekit.errors import InputError
 @json_option
 @debug_option
 @click.pass_context
-def fit_cage(ctx, mesh, out, faces, method, components, preview, up, seed, as_json):
+def fit_cage(ctx: click.Context, mesh: str, out: str, faces: int, method: str, components: int,
+             preview: str | None, up: str, seed: int, as_json: bool) -> None:
     """Build a cage around MESH (a mesh or a point cloud) and write it to OUT.
 
     Every cage written is closed, 2-manifold, outward-oriented, free of self-intersection,
@@ -79,6 +84,7 @@ def fit_cage(ctx, mesh, out, faces, method, components, preview, up, seed, as_js
                                      components=components, seed=seed)
     except InputError as exc:
         raise InputError(exc.problem, mesh) from None
+    report = cast("CageReport", report)  # made: fit's report=True is the default
     seconds = time.perf_counter() - t0
     io.save_mesh(out, cage_v, cage_f)
     if preview is not None:

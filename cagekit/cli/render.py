@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import click
 
@@ -12,6 +14,9 @@ from cagekit.cli.common import (
     debug_option,
     start_command,
 )
+
+if TYPE_CHECKING:
+    from cagekit.typed import Faces, Vertices
 
 
 def _parse_views(ctx, param, values):
@@ -63,7 +68,9 @@ def _parse_size(ctx, param, text: str):
               help="Draw all panels in one frame (shapes in the same units).")
 @debug_option
 @click.pass_context
-def render(ctx, meshes, out, cages, titles, caption, views, size, up, same_scale):
+def render(ctx: click.Context, meshes: tuple[str, ...], out: str, cages: tuple[str, ...],
+           titles: Sequence[str], caption: str | None, views: list[tuple[float, float]],
+           size: tuple[int, int], up: str, same_scale: bool) -> None:
     """Draw MESH... side by side (and their cages) into a PNG picture.
 
     Meshes are flat-shaded; point clouds are drawn as dots; each --cage is drawn as a
@@ -87,7 +94,7 @@ def render(ctx, meshes, out, cages, titles, caption, views, size, up, same_scale
     check_output(out, (*meshes, *cages), extensions={".png"})
 
     shapes = [load_shape(path) for path in meshes]
-    cage_shapes = [load_mesh(path) for path in cages]
+    cage_shapes: list[tuple[Vertices, Faces] | None] = [load_mesh(path) for path in cages]
     cage_shapes += [None] * (len(shapes) - len(cage_shapes))
     if not titles:
         titles = [os.path.basename(path) for path in meshes]

@@ -38,7 +38,8 @@ FAMILIES = ("chairs", "tables", "vases")
 @json_option
 @debug_option
 @click.pass_context
-def synth(ctx, family, count, out, seed, fmt, resolution, as_json):
+def synth(ctx: click.Context, family: str, count: int, out: str, seed: int, fmt: str,
+          resolution: float, as_json: bool) -> None:
     """Write N (-n) procedural shapes of FAMILY (chairs, tables or vases) into a folder.
 
     Files are named OUT/<chair|table|vase>_<i>.<format> (i = 0000, 0001...); shape i

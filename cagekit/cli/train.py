@@ -86,9 +86,12 @@ _STORED_OPTIONS = {
 @json_option
 @debug_option
 @click.pass_context
-def train(ctx, data, run_dir, epochs, batch_size, lr, device, resume, points, bottleneck,
-          coords, nc, fixed_source, source_cage, no_box_align, symmetry, align, no_augment,
-          checkpoint_every, max_steps, minutes, seed, as_json):
+def train(ctx: click.Context, data: str, run_dir: str, epochs: int | None, batch_size: int,
+          lr: float, device: str | None, resume: bool, points: int, bottleneck: int,
+          coords: str, nc: str, fixed_source: str | None, source_cage: str | None,
+          no_box_align: bool, symmetry: str, align: str, no_augment: bool,
+          checkpoint_every: int, max_steps: int | None, minutes: float | None, seed: int,
+          as_json: bool) -> None:
     """Train N_c and N_d (the paper's networks) on the meshes under DATA_DIR.
 
     DATA_DIR is searched recursively for meshes (ShapeNet's layout works as is); each is
@@ -129,6 +132,7 @@ def train(ctx, data, run_dir, epochs, batch_size, lr, device, resume, points, bo
             epochs = None
         if not _given(ctx, "device"):
             device = None
+    # epochs None (resumed, not given again) keeps the checkpoint's, as train() documents
     config = TrainConfig(
         data=data, run_dir=run_dir, epochs=epochs, batch_size=batch_size, lr=lr,
         points=points, seed=seed, device=device, checkpoint_every=checkpoint_every,
@@ -208,7 +212,7 @@ def _refuse_contradictions(ctx: click.Context, config, source_cage) -> None:
         if given == kept:
             continue
         option = params[name].opts[0]
-        if params[name].is_flag:
+        if getattr(params[name], "is_flag", False):
             raise InputError(f"{option} contradicts the checkpoint's "
                              f"{key.removeprefix('model.')}={kept}", path)
         raise InputError(f"{option} {ctx.params[name]} contradicts the checkpoint's "

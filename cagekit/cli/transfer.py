@@ -68,9 +68,10 @@ AUTO = "auto"
 @json_option
 @debug_option
 @click.pass_context
-def transfer(ctx, template, template_cage, template_landmarks, character,
-             character_landmarks, poses, out_dir, rule, root, model_path, align, coords,
-             cage_faces, grid_path, seed, as_json):
+def transfer(ctx: click.Context, template: str, template_cage: str, template_landmarks: str,
+             character: str, character_landmarks: str, poses: tuple[str, ...], out_dir: str,
+             rule: str, root: str, model_path: str | None, align: str, coords: str,
+             cage_faces: int, grid_path: str | None, seed: int, as_json: bool) -> None:
     """Transfer the TEMPLATE's POSES to a novel CHARACTER given matching landmarks.
 
     TEMPLATE and CHARACTER are meshes in rest pose (any mesh format cagekit reads, any
@@ -149,7 +150,8 @@ def _pose_paths(poses) -> list[Path]:
 
 
 def _output_names(paths) -> list[str]:
-    names, seen = [], {}
+    names: list[str] = []
+    seen: dict[str, int] = {}
     for path in paths:
         name = f"{path.stem}.obj"
         if name in seen:

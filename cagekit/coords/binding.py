@@ -3,14 +3,17 @@
 from __future__ import annotations
 
 import warnings
+from typing import Literal, overload
 
 import numba
 import numpy as np
+from numpy.typing import ArrayLike
 
 from cagekit.cage import cage_encloses, check_cage, distance_in_diagonals, winding_numbers
 from cagekit.coords.green import FaceTerms, green_coordinates
 from cagekit.coords.mvc import FAR_BLEND, mean_value_coordinates
 from cagekit.errors import InputError, OutsideCageWarning
+from cagekit.typed import Faces, Floats, Vertices
 
 __all__ = ["CageBinding", "GreenBinding", "bind", "warn_outside", "METHODS"]
 
@@ -53,7 +56,7 @@ class CageBinding:
         The coordinates used (``"mvc"``).
     """
 
-    def __init__(self, weights: np.ndarray, cage_v: np.ndarray, cage_f: np.ndarray, method: str):
+    def __init__(self, weights: Floats, cage_v: Vertices, cage_f: Faces, method: str) -> None:
         self.weights = weights
         self.cage_v = cage_v
         self.cage_f = cage_f
@@ -64,7 +67,7 @@ class CageBinding:
         """Number of bound points."""
         return self.weights.shape[0]
 
-    def deform(self, new_cage_v) -> np.ndarray:
+    def deform(self, new_cage_v: ArrayLike) -> Vertices:
         """Positions of the bound points for moved cage vertices.
 
         Raises :class:`cagekit.InputError` for a cage of the wrong shape, with NaN or inf,
@@ -91,7 +94,7 @@ class CageBinding:
         new = _checked_cage(new_cage_v, self.cage_v.shape)
         return _finite_positions(_weights_times_vertices(self.weights, new))
 
-    def encloses(self, points) -> bool:
+    def encloses(self, points: ArrayLike) -> bool:
         """Whether the given points (usually the bound ones) all lie inside the cage."""
         return cage_encloses(points, self.cage_v, self.cage_f)
 
@@ -113,8 +116,7 @@ class GreenBinding:
         ``"green"``.
     """
 
-    def __init__(self, phi: np.ndarray, psi: np.ndarray, cage_v: np.ndarray,
-                 cage_f: np.ndarray):
+    def __init__(self, phi: Floats, psi: Floats, cage_v: Vertices, cage_f: Faces) -> None:
 
         self.phi, self.psi = phi, psi
         self.cage_v, self.cage_f = cage_v, cage_f
@@ -126,7 +128,7 @@ class GreenBinding:
         """Number of bound points."""
         return self.phi.shape[0]
 
-    def deform(self, new_cage_v) -> np.ndarray:
+    def deform(self, new_cage_v: ArrayLike) -> Vertices:
         """Positions of the bound points for moved cage vertices.
 
         ``phi @ new_cage_v + psi @ (s * n')``, with ``n'`` the moved faces' unit normals
@@ -182,7 +184,18 @@ def _checked_cage(new_cage_v, shape) -> np.ndarray:
     return np.ascontiguousarray(new)
 
 
-def bind(points, cage_v, cage_f, method: str = "mvc", *,
+@overload
+def bind(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike,
+         method: Literal["mvc"] = "mvc", *, check: bool = True) -> CageBinding: ...
+@overload
+def bind(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike,
+         method: Literal["green"], *, check: bool = True) -> GreenBinding: ...
+@overload
+def bind(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike, method: str = "mvc", *,
+         check: bool = True) -> CageBinding | GreenBinding: ...
+
+
+def bind(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike, method: str = "mvc", *,
          check: bool = True) -> CageBinding | GreenBinding:
     """Compute the coordinates of points with respect to a cage.
 
@@ -212,7 +225,8 @@ def bind(points, cage_v, cage_f, method: str = "mvc", *,
 
     Returns
     -------
-    CageBinding
+    CageBinding or GreenBinding
+        As ``method``; type checkers see which from a literal ``method``.
 
     Examples
     --------
@@ -234,8 +248,8 @@ def bind(points, cage_v, cage_f, method: str = "mvc", *,
     return CageBinding(weights, v, faces, method)
 
 
-def warn_outside(points, cage_v, cage_f, *, shape: str = "the shape",
-                 cage: str = "the cage") -> float:
+def warn_outside(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike, *,
+                 shape: str = "the shape", cage: str = "the cage") -> float:
     """Warn when points lie outside their cage, with the share outside.
 
     Every command that binds a shape calls it, so they all warn alike. Points outside a

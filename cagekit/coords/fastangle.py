@@ -12,8 +12,12 @@ double over ``[0, pi]``; it is within a few units in the last place of ``np.arct
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numba
 import numpy as np
+
+from cagekit.typed import Floats
 
 __all__ = ["angle_from_sin_cos", "half_angle_over_sin", "fit_atan_polynomial", "chebyshev_fit",
            "ATAN_COEFFICIENTS"]
@@ -21,7 +25,8 @@ __all__ = ["angle_from_sin_cos", "half_angle_over_sin", "fit_atan_polynomial", "
 _TAN_PI_8 = float(np.tan(np.pi / 8))
 
 
-def chebyshev_fit(target, top: float, degree: int, nodes: int) -> np.ndarray:
+def chebyshev_fit(target: Callable[[np.ndarray], np.ndarray], top: float, degree: int,
+                  nodes: int) -> Floats:
     """Coefficients ``c_i`` with ``sum_i c_i t**i ~= target(t)`` on ``0 <= t <= top``.
 
     Least squares on ``nodes`` Chebyshev nodes, refined four times with residuals in long
@@ -129,7 +134,7 @@ def _unreduce(r, big, swapped, negative):
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def angle_from_sin_cos(s, c):
+def angle_from_sin_cos(s: float, c: float) -> float:
     """``atan2(s, c)`` for ``s >= 0`` (an angle in ``[0, pi]``); 0 when both are 0.
 
     Written with selects only (no branches) so that loops calling it vectorise.
@@ -150,7 +155,7 @@ def angle_from_sin_cos(s, c):
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def half_angle_over_sin(s, c):
+def half_angle_over_sin(s: float, c: float) -> float:
     """``atan2(s, c) / (2 s)`` for ``s >= 0``, and 0 where ``s == 0``.
 
     The MVC edge term ``beta / 2 * (u x v) / |u x v|`` needs this ratio; computing it with

@@ -113,7 +113,7 @@ def atanh_small(z):
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def log_ratio(num, den):
+def log_ratio(num: float, den: float) -> float:
     """``log(num / den)`` for positive normal floats; NaN where either is zero, negative,
     subnormal, infinite or NaN (the caller treats a non-finite result as a failure).
 

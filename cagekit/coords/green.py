@@ -53,6 +53,7 @@ from dataclasses import dataclass
 
 import numba
 import numpy as np
+from numpy.typing import ArrayLike
 
 from cagekit.cage import cage_topology
 from cagekit.coords.fastangle import angle_from_sin_cos
@@ -60,6 +61,7 @@ from cagekit.coords.fastlog import log_ratio
 from cagekit.coords.lanes import load_lanes
 from cagekit.errors import InputError
 from cagekit.geometry.frame import bounding_box_diagonal
+from cagekit.typed import Floats, Ints, Vertices
 
 __all__ = ["green_coordinates", "evaluation_plan", "EvaluationPlan", "FaceTerms", "stretch_factors",
            "unit_normals", "SNAP", "INSET"]
@@ -297,7 +299,7 @@ def _face_constants(cv, faces, normals, twice):
             np.ascontiguousarray(grads), np.ascontiguousarray(1.0 / twice), edge_len)
 
 
-def unit_normals(cage_v, cage_f) -> tuple[np.ndarray, np.ndarray]:
+def unit_normals(cage_v: ArrayLike, cage_f: ArrayLike) -> tuple[Floats, Floats]:
     """Unit normals and twice the areas of a cage's faces.
 
     Parameters
@@ -320,7 +322,7 @@ def unit_normals(cage_v, cage_f) -> tuple[np.ndarray, np.ndarray]:
     return normals, twice
 
 
-def stretch_factors(rest_v, new_v, cage_f) -> np.ndarray:
+def stretch_factors(rest_v: ArrayLike, new_v: ArrayLike, cage_f: ArrayLike) -> Floats:
     """Each face's stretch factor ``s_j`` of Green coordinates' deformation.
 
     ``s = sqrt(|u'_1|^2 |u_2|^2 - 2 (u'_1 . u'_2)(u_1 . u_2) + |u'_2|^2 |u_1|^2) /
@@ -363,7 +365,8 @@ def stretch_factors(rest_v, new_v, cage_f) -> np.ndarray:
     return np.sqrt(inside) / (np.sqrt(2.0) * twice_area)
 
 
-def green_coordinates(points, cage_v, cage_f) -> tuple[np.ndarray, np.ndarray]:
+def green_coordinates(points: ArrayLike, cage_v: ArrayLike,
+                      cage_f: ArrayLike) -> tuple[Floats, Floats]:
     """Green coordinates of points with respect to a closed, outward triangle cage.
 
     Parameters
@@ -417,12 +420,12 @@ class EvaluationPlan:
         ... these faces.
     """
 
-    evaluated: np.ndarray
-    outside_rows: np.ndarray
-    exit_faces: np.ndarray
+    evaluated: Vertices
+    outside_rows: Ints
+    exit_faces: Ints
 
 
-def evaluation_plan(points, cage_v, cage_f) -> EvaluationPlan:
+def evaluation_plan(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike) -> EvaluationPlan:
     """The :class:`EvaluationPlan` of :func:`green_coordinates` for these points (the
     torch twin, ``cagekit_learn.green``, evaluates and extends where the core does)."""
     return _coordinates_and_plan(points, cage_v, cage_f)[2]
@@ -569,7 +572,7 @@ class FaceTerms:
     True
     """
 
-    def __init__(self, rest_v, cage_f):
+    def __init__(self, rest_v: ArrayLike, cage_f: ArrayLike) -> None:
         self.rest_v = np.asarray(rest_v, dtype=np.float64)
         self.faces = np.asarray(cage_f, dtype=np.int64)
         u1 = self.rest_v[self.faces[:, 1]] - self.rest_v[self.faces[:, 0]]
@@ -586,15 +589,16 @@ class FaceTerms:
         length = np.linalg.norm(cross, axis=1)
         return w1, w2, cross, length
 
-    def __call__(self, C) -> np.ndarray:
+    def __call__(self, C: ArrayLike) -> Floats:
         """``s_j n'_j`` of every face, (m, 3), for the moved cage ``C`` (k, 3)."""
         C = np.asarray(C, dtype=np.float64)
         _, _, cross, length = self._parts(C)
         return (stretch_factors(self.rest_v, C, self.faces) / length)[:, None] * cross
 
-    def vjp(self, C, G) -> np.ndarray:
+    def vjp(self, C: ArrayLike, G: ArrayLike) -> Floats:
         """``d(sum G * face_terms(C)) / dC``, (k, 3), for ``G`` (m, 3)."""
         C = np.asarray(C, dtype=np.float64)
+        G = np.asarray(G, dtype=np.float64)
         w1, w2, cross, length = self._parts(C)
         n = cross / length[:, None]
         s = stretch_factors(self.rest_v, C, self.faces)

@@ -7,12 +7,13 @@ vectorises their loops over the lanes; this loads a block.
 from __future__ import annotations
 
 import numba
+import numpy as np
 
 __all__ = ["load_lanes"]
 
 
 @numba.njit(cache=True, inline="always")
-def load_lanes(points, start, P) -> None:
+def load_lanes(points: np.ndarray, start: int, P: np.ndarray) -> None:
     """Copy ``points[start:start + L]`` into the columns of ``P`` (3, L), repeating the last
     point for the lanes past its end (their results are not read)."""
     last = points.shape[0] - 1

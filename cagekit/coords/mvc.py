@@ -25,12 +25,14 @@ from __future__ import annotations
 
 import numba
 import numpy as np
+from numpy.typing import ArrayLike
 
 from cagekit.cage import cage_topology, check_cage, distance_in_diagonals
 from cagekit.coords.fastangle import half_angle_over_sin
 from cagekit.coords.lanes import load_lanes
 from cagekit.errors import InputError
 from cagekit.geometry.frame import bounding_box_diagonal
+from cagekit.typed import Floats
 
 __all__ = ["mean_value_coordinates", "affine_extension_weights", "affine_extension_matrix",
            "closest_point_weights", "DEFAULT_SNAP", "FAR_BLEND"]
@@ -48,7 +50,8 @@ def _cross(ax, ay, az, bx, by, bz):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def closest_point_weights(x, cage_v, faces, row):
+def closest_point_weights(x: np.ndarray, cage_v: np.ndarray, faces: np.ndarray,
+                          row: np.ndarray) -> None:
     """Barycentric weights of the cage point closest to ``x``, written into ``row`` (numba).
 
     The fallback for a point whose MVC weight sum cannot be resolved; the torch twin uses it
@@ -333,8 +336,8 @@ def _mvc_kernel(points, cage_v, faces, edges, face_edges, face_signs, face_n, fa
                     closest_point_weights(points[i], cage_v, faces, row)
 
 
-def mean_value_coordinates(points, cage_v, cage_f, snap: float = DEFAULT_SNAP,
-                           check: bool = True):
+def mean_value_coordinates(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike,
+                           snap: float = DEFAULT_SNAP, check: bool = True) -> Floats:
     """Mean value coordinates of points with respect to a closed triangle cage.
 
     Parameters
@@ -428,7 +431,8 @@ def _homogeneous(q):
     return np.hstack([q, np.ones((len(q), 1))])
 
 
-def affine_extension_matrix(cage_v, cage_f):
+def affine_extension_matrix(cage_v: ArrayLike,
+                            cage_f: ArrayLike) -> tuple[Floats, float, Floats]:
     """The ``(4, k)`` matrix of the affine extension of a cage, in its normalised frame.
 
     Returns ``(centre, diag, M)``: the weights of a point ``p`` are ``[(p - centre) / diag,
@@ -445,7 +449,7 @@ def affine_extension_matrix(cage_v, cage_f):
     return centre, diag, M
 
 
-def affine_extension_weights(points, cage_v, cage_f) -> np.ndarray:
+def affine_extension_weights(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike) -> Floats:
     """Coordinates that move points by the least-squares affine fit of a cage's motion.
 
     With ``H = [cage_v, 1]`` (the used vertices, homogeneous) the weights of ``p`` are

@@ -12,12 +12,14 @@ mean_value_coordinates` for real work.
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike, DTypeLike
 
 __all__ = ["mean_value_coordinates_textbook"]
 
 
-def mean_value_coordinates_textbook(points, cage_v, cage_f, eps: float = 1e-8,
-                                    dtype=np.float64, chunk: int = 2048):
+def mean_value_coordinates_textbook(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike,
+                                    eps: float = 1e-8, dtype: DTypeLike = np.float64,
+                                    chunk: int = 2048) -> np.ndarray:
     """Textbook MVC, vectorised over points and faces.
 
     Parameters

@@ -31,12 +31,15 @@ True
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from cagekit.datasets import humanoid
 from cagekit.io.landmarks import SurfacePoint
+from cagekit.typed import Vertices
 
 __all__ = ["CHARACTERS", "UNLIKE_CHARACTERS", "FINGERS", "MISSING", "MISSPELT", "Character",
            "character", "rest_pose", "surface_landmarks"]
@@ -142,10 +145,13 @@ class Character:
     faces: np.ndarray
     rest_pose: dict
     landmarks: list
-    _pose: object = None
+    _pose: Callable[[Mapping[str, ArrayLike]], np.ndarray] | None = None
 
-    def truth(self, pose) -> np.ndarray:
+    def truth(self, pose: Mapping[str, ArrayLike]) -> Vertices:
         """(n, 3) float64: the character in ``pose`` (joint rotations from the T-pose)."""
+        if self._pose is None:
+            raise RuntimeError(f"character {self.name!r} has no pose function; build it with "
+                               "character()")
         return self._pose(pose)
 
 
@@ -167,7 +173,8 @@ def _box(points, subdivisions: int = 5):
     lo, hi = local.min(axis=0), local.max(axis=0)
     n = subdivisions
     grid = np.linspace(0.0, 1.0, n + 1)
-    V, F = [], []
+    sheets_v: list[np.ndarray] = []
+    sheets_f: list[np.ndarray] = []
     # five sides of the unit cube, each an (n+1) x (n+1) grid, outward
     sides = [(0, 0.0, (1, 2)), (0, 1.0, (2, 1)), (1, 0.0, (2, 0)), (1, 1.0, (0, 2)),
              (2, 0.0, (1, 0))]
@@ -175,14 +182,14 @@ def _box(points, subdivisions: int = 5):
         a, b = np.meshgrid(grid, grid, indexing="ij")
         P = np.zeros((a.size, 3))
         P[:, axis], P[:, u], P[:, v] = value, a.ravel(), b.ravel()
-        base = sum(len(x) for x in V)
+        base = sum(len(x) for x in sheets_v)
         idx = base + np.arange(a.size).reshape(n + 1, n + 1)
         quads = np.stack([idx[:-1, :-1], idx[1:, :-1], idx[1:, 1:], idx[:-1, 1:]], -1)
         quads = quads.reshape(-1, 4)
-        F.append(np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]]))
-        V.append(P)
-    V = np.concatenate(V) * (hi - lo) + lo
-    F = np.concatenate(F)
+        sheets_f.append(np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]]))
+        sheets_v.append(P)
+    V = np.concatenate(sheets_v) * (hi - lo) + lo
+    F = np.concatenate(sheets_f)
     # outward: flip when the first face points at the centre
     normal = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
     outward = ((V[F].mean(axis=1) - (lo + hi) / 2) * normal).sum(axis=1)
@@ -212,7 +219,8 @@ def _rigid_pose(rig, joint):
     return pose
 
 
-def surface_landmarks(vertices, faces, anchors, labels, seed: int = 0) -> list[SurfacePoint]:
+def surface_landmarks(vertices: ArrayLike, faces: ArrayLike, anchors: ArrayLike,
+                      labels: Iterable[str], seed: int = 0) -> list[SurfacePoint]:
     """Points on a surface near given anchor points, as (face, barycentric) rows.
 
     Parameters
@@ -231,12 +239,13 @@ def surface_landmarks(vertices, faces, anchors, labels, seed: int = 0) -> list[S
     """
     import igl
 
+    V, F = np.asarray(vertices), np.asarray(faces)
+    points = np.asarray(anchors, np.float64)
     rng = np.random.default_rng(seed)
-    _, face, _ = igl.point_mesh_squared_distance(np.asarray(anchors, np.float64),
-                                                 vertices, faces)
+    _, face, _ = igl.point_mesh_squared_distance(points, V, F)
     out = []
-    for label, anchor, f in zip(labels, anchors, np.asarray(face, np.int64)):
-        tri = vertices[faces[f]]
+    for label, anchor, f in zip(labels, points, np.asarray(face, np.int64)):
+        tri = V[F[f]]
         near = int(np.argmin(np.linalg.norm(tri - anchor, axis=1)))
         b = np.zeros(3)
         others = [i for i in range(3) if i != near]
@@ -257,7 +266,7 @@ def _labelled(marks: list[SurfacePoint]) -> list[SurfacePoint]:
     return out
 
 
-def character(name: str, labels=None, seed: int = 0) -> Character:
+def character(name: str, labels: Iterable[str] | None = None, seed: int = 0) -> Character:
     """Build one of :data:`CHARACTERS`.
 
     Parameters

@@ -34,6 +34,9 @@ from dataclasses import dataclass, fields
 from functools import lru_cache
 
 import numpy as np
+from numpy.typing import ArrayLike
+
+from cagekit.typed import Faces, Floats, Vertices
 
 __all__ = ["BODY_SHAPES", "JOINTS", "LANDMARK_NAMES", "NOVEL_BODIES", "UNLIKE_BODIES", "PARENTS",
            "RIGID_PARENTS", "RIGID_PARTS", "BodyShape", "Rig", "humanoid", "landmark_part",
@@ -68,7 +71,14 @@ PARENTS: dict[str, str | None] = {"pelvis": None, "spine": "pelvis", "chest": "s
 """Joint name -> parent joint name (``None`` for the root, ``"pelvis"``)."""
 
 _JI = {name: i for i, name in enumerate(JOINTS)}
-_PARENT_INDEX = np.array([-1 if PARENTS[j] is None else _JI[PARENTS[j]] for j in JOINTS])
+
+
+def _parent_index(joint: str) -> int:
+    parent = PARENTS[joint]
+    return -1 if parent is None else _JI[parent]
+
+
+_PARENT_INDEX = np.array([_parent_index(j) for j in JOINTS])
 
 
 def _mirror_name(name: str) -> str:
@@ -721,7 +731,9 @@ _LIMB_DIRECTIONS = {"front": 0.0, "back": np.pi, "outer": -0.5 * np.pi, "inner":
 
 # (name, part, ring, angle): ring is "pole0", "pole1", a fraction of the body rings, or
 # ("lat", latitude) on the head; angle psi: 0 = e2 (front), pi/2 = -e1 (left on the body).
-_CENTRAL_LANDMARKS = (
+_Ring = str | float | tuple[str, float]
+_LandmarkSpec = tuple[str, str, _Ring, float]
+_CENTRAL_LANDMARKS: tuple[_LandmarkSpec, ...] = (
     ("head_top", "head", "pole1", 0.0),
     ("nose_tip", "head", ("lat", _NOSE_LAT), 0.0),
     ("chin", "head", ("lat", _CHIN_LAT), 0.0),
@@ -745,7 +757,7 @@ _CENTRAL_LANDMARKS = (
     ("l_buttock", "torso", 0.08, np.pi - 0.45),
 )
 # left-side parts; "r_" twins are their mirror images
-_SIDE_LANDMARKS = (
+_SIDE_LANDMARKS: tuple[_LandmarkSpec, ...] = (
     ("hand_tip", "middle", "pole1", 0.0),
     ("thumb_tip", "thumb", "pole1", 0.0),
     ("index_tip", "index", "pole1", 0.0),
@@ -765,9 +777,9 @@ _SIDE_LANDMARKS = (
 )
 
 
-def _landmark_specs() -> list[tuple[str, str, object, float]]:
+def _landmark_specs() -> list[_LandmarkSpec]:
     """Every landmark as (name, part, ring, angle), in :data:`LANDMARK_NAMES` order."""
-    specs = []
+    specs: list[_LandmarkSpec] = []
     for side in "lr":
         for part in ("upper_arm", "forearm", "thigh", "shin"):
             for pos, fraction in _LIMB_POSITIONS.items():
@@ -870,7 +882,7 @@ def _landmark_local(spec, counts) -> int:
 # ------------------------------------------------------------------------ rotations
 
 
-def rotation_matrix(axis_angle) -> np.ndarray:
+def rotation_matrix(axis_angle: ArrayLike) -> Floats:
     """The (3, 3) rotation of an axis-angle vector (radians; Rodrigues' formula).
 
     Examples
@@ -932,7 +944,8 @@ class Rig:
         part is one closed connected component.
     """
 
-    def __init__(self, shape: BodyShape, vertices, faces, joints, weights, landmarks, parts):
+    def __init__(self, shape: BodyShape, vertices: Vertices, faces: Faces, joints: Floats,
+                 weights: Floats, landmarks: dict[str, int], parts: dict[str, slice]) -> None:
         self.shape = shape
         self.vertices = vertices
         self.faces = faces

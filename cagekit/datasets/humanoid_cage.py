@@ -23,7 +23,8 @@ from __future__ import annotations
 import numpy as np
 
 from cagekit.cage import check_cage
-from cagekit.datasets.humanoid import JOINTS
+from cagekit.datasets.humanoid import JOINTS, Rig
+from cagekit.typed import Faces, Vertices
 
 __all__ = ["humanoid_cage", "MARGIN"]
 
@@ -34,7 +35,7 @@ MARGIN = 0.015
 class _QuadMesh:
     """Vertices and outward quads, with extrusion of one quad at a time."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         self.vertices: list[np.ndarray] = []
         self.quads: list[tuple[int, int, int, int]] = []
 
@@ -45,7 +46,8 @@ class _QuadMesh:
     def extrude(self, quad, corners) -> tuple[int, int, int, int]:
         """Replace ``quad`` by side walls and a cap at ``corners`` (4 points, same order)."""
         self.quads.remove(quad)
-        cap = tuple(self.add(p) for p in corners)
+        p0, p1, p2, p3 = corners
+        cap = (self.add(p0), self.add(p1), self.add(p2), self.add(p3))
         for i in range(4):
             a, b = quad[i], quad[(i + 1) % 4]
             self.quads.append((a, b, cap[(i + 1) % 4], cap[i]))
@@ -80,7 +82,7 @@ def _levels(points, axis, stations, margin):
     return out
 
 
-def humanoid_cage(rig, margin: float = MARGIN) -> tuple[np.ndarray, np.ndarray]:
+def humanoid_cage(rig: Rig, margin: float = MARGIN) -> tuple[Vertices, Faces]:
     """The cage of a rig in its rest T-pose (see the module docstring).
 
     Parameters
@@ -119,10 +121,9 @@ def humanoid_cage(rig, margin: float = MARGIN) -> tuple[np.ndarray, np.ndarray]:
     top_of_shoulder = shoulder[1] + arm_radius + m
     head = V[parts["head"]]
     head_low = float(head[:, 1].min())
-    levels = [y_bottom, 0.5 * (y_bottom + armpit), armpit, top_of_shoulder,
-              head_low + 0.2 * (y_top - head_low), head_low + 0.6 * (y_top - head_low),
-              y_top]
-    levels = np.maximum.accumulate(np.asarray(levels))
+    levels = np.maximum.accumulate(np.asarray([
+        y_bottom, 0.5 * (y_bottom + armpit), armpit, top_of_shoulder,
+        head_low + 0.2 * (y_top - head_low), head_low + 0.6 * (y_top - head_low), y_top]))
     mesh = _QuadMesh()
     rings = []
     for i, y in enumerate(levels):

@@ -23,6 +23,7 @@ from __future__ import annotations
 import os
 import re
 import zipfile
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 from cagekit.errors import InputError
@@ -129,7 +130,7 @@ def _unpack(archive: str, folder: str) -> None:
         fh.write(archive + "\n")
 
 
-def models(catalogs=CATALOGS, cache: str = "out/sweethome3d",
+def models(catalogs: Iterable[str] = CATALOGS, cache: str = "out/sweethome3d",
            furniture_dir: str = FURNITURE_DIR) -> list[Model]:
     """The models of the installed catalogs, unpacked into ``cache``.
 

@@ -26,6 +26,8 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 
+from cagekit.typed import Faces, Vertices
+
 __all__ = ["CHAIR_RANGES", "FAMILIES", "TABLE_RANGES", "VASE_RANGES", "chair", "family",
            "table", "vase"]
 
@@ -175,10 +177,10 @@ def _lathe(segments, edge: float, *, sections: int | None = None, min_sections=6
     modulate : callable, optional
         ``modulate(ring_index_in_profile, radius, y, theta) -> radius`` (flutes).
     """
-    profile = [_resample(segments[0], edge)]
+    pieces = [_resample(segments[0], edge)]
     for seg in segments[1:]:
-        profile.append(_resample(seg, edge)[1:])
-    profile = np.concatenate(profile)
+        pieces.append(_resample(seg, edge)[1:])
+    profile = np.concatenate(pieces)
     r, y = profile[:, 0], profile[:, 1]
     k = len(profile)
     gaps = np.hypot(np.diff(r), np.diff(y))
@@ -292,7 +294,7 @@ def _box(lo, hi, edge: float, taper: float = 1.0) -> _Mesh:
     shape = tuple(c + 1 for c in counts)
     boundary = np.zeros(shape, dtype=bool)
     for axis in range(3):
-        index = [slice(None)] * 3
+        index: list[slice | int] = [slice(None)] * 3
         for side in (0, -1):
             index[axis] = side
             boundary[tuple(index)] = True
@@ -390,7 +392,7 @@ CHAIR_RANGES = {
 
 
 def chair(seed: int = 0, *, resolution: float = 1.0, height: float | None = None,
-          **params) -> _Mesh:
+          **params: float | str | bool) -> tuple[Vertices, Faces]:
     """A chair: seat, four legs, back posts, a top rail, back slats/spindles/rails.
 
     Parameters
@@ -521,7 +523,8 @@ def _turned_profile(radius: float, length: float, block: float) -> list:
     return [_line((0, 0), (r[0], 0)), wall, _line((r[-1], length), (0, length))]
 
 
-def table(seed: int = 0, *, resolution: float = 1.0, **params) -> _Mesh:
+def table(seed: int = 0, *, resolution: float = 1.0,
+          **params: float | str | bool) -> tuple[Vertices, Faces]:
     """A table: top, four legs, an apron, and a lower shelf or stretchers.
 
     Parameters
@@ -613,7 +616,8 @@ VASE_RANGES = {
 fraction of the height; ``flutes`` is drawn from the listed values)."""
 
 
-def vase(seed: int = 0, *, resolution: float = 1.0, **params) -> _Mesh:
+def vase(seed: int = 0, *, resolution: float = 1.0,
+         **params: float | str | bool) -> tuple[Vertices, Faces]:
     """A hollow vase of revolution: foot ring, body with ridges, neck and a rolled rim.
 
     Parameters
@@ -727,7 +731,8 @@ FAMILIES: dict[str, Callable[..., _Mesh]] = {"chairs": chair, "tables": table,
 """Family name -> shape function."""
 
 
-def family(name: str, n: int, seed: int = 0, **kwargs) -> Iterator[_Mesh]:
+def family(name: str, n: int, seed: int = 0,
+           **kwargs: float | str | bool | None) -> Iterator[tuple[Vertices, Faces]]:
     """``n`` shapes of a family; the i-th is ``FAMILIES[name](seed=seed + i, **kwargs)``.
 
     Parameters

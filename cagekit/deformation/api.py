@@ -84,9 +84,11 @@ class DeformResult:
 
     def set_solution(self, problem: CageProblem, solution: CageSolution) -> None:
         """Take a :func:`solve` result, mapped from the unit frames to the shapes' own."""
-        ft = self.target_frame
+        fs, ft = self.source_frame, self.target_frame
+        if fs is None or ft is None:
+            raise ValueError("set_solution needs the result's source and target frames")
         self.vertices = ft.to_world(solution.vertices)
-        self.cage_v = self.source_frame.to_world(problem.cage_v)
+        self.cage_v = fs.to_world(problem.cage_v)
         self.cage_f = problem.cage_f
         self.deformed_cage_v = ft.to_world(solution.deformed_cage)
         self.losses, self.weights = solution.losses, problem.weights
@@ -234,7 +236,7 @@ def deform(V_src: ArrayLike, F_src: ArrayLike | None, V_tgt: ArrayLike,
                 raise InputError(f"initial cage has {len(C_start)} vertices, the cage "
                                  f"{len(cage[0])}")
         lm = _landmarks_in_frames(landmarks, fs, ft)
-        problem = CageProblem.create(Vs_n, Fs, Vt_n, Ft, *cage, options,
+        problem = CageProblem.create(Vs_n, Fs, Vt_n, Ft, cage[0], cage[1], options,
                                      landmarks=None if lm[0] is None else lm)
         solution = solve(problem, C_start, max_evaluations=options.max_evaluations,
                          tolerance=options.tolerance, progress=progress)

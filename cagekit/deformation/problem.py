@@ -28,13 +28,16 @@ See docs/architecture.md.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
 from cagekit.cage import vertex_components
-from cagekit.coords import bind
+from cagekit.coords import GreenBinding, bind
 from cagekit.coords.green import FaceTerms
 from cagekit.deformation import terms as losses
 from cagekit.deformation.options import DeformOptions
@@ -44,6 +47,7 @@ from cagekit.geometry import cotangent_laplacian, surface_laplacian, vertex_neig
 from cagekit.geometry.alignment import box_scale, partial_box_scale
 from cagekit.geometry.sampling import sample_surface, subset
 from cagekit.metrics import MIN_PART_VERTICES
+from cagekit.typed import Faces, Floats, Vertices
 
 __all__ = ["CageEnergy", "CageProblem", "CageSolution", "DEFAULT_WEIGHTS", "box_factors",
            "solve", "term_weights"]
@@ -111,9 +115,13 @@ class CageEnergy:
         and stretch factors exactly (:meth:`~cagekit.coords.green.FaceTerms.vjp`).
     """
 
-    def __init__(self, W_samples, target, W_shape, shape_ref, cage_f, cage_ref, weights,
-                 symmetry=None, W_landmarks=None, landmarks=None, parts_matrix=None,
-                 partial=False, detail_matrix=None, face_terms=None):
+    def __init__(self, W_samples: Floats | None, target: Vertices | None, W_shape: Floats,
+                 shape_ref: losses.ShapeReference, cage_f: Faces, cage_ref: Vertices,
+                 weights: dict[str, float], symmetry: str | None = None,
+                 W_landmarks: Floats | None = None, landmarks: Vertices | None = None,
+                 parts_matrix: Floats | None = None, partial: bool = False,
+                 detail_matrix: Floats | None = None,
+                 face_terms: FaceTerms | None = None) -> None:
         self.W_samples, self.target = W_samples, target
         self.tree = cKDTree(target) if target is not None else None
         self.W_shape, self.shape_ref = W_shape, shape_ref
@@ -130,11 +138,11 @@ class CageEnergy:
         self.face_terms = face_terms
         self.Z_ref = self.lift(cage_ref)
 
-    def lift(self, C):
+    def lift(self, C: Vertices) -> Vertices:
         """What the ``W`` matrices act on: ``C``, or ``[C; face_terms(C)]`` (Green)."""
         return _lifted(C, self.face_terms)
 
-    def evaluate(self, C):
+    def evaluate(self, C: Vertices) -> tuple[float, Vertices, dict[str, float]]:
         """Weighted energy, its gradient (k, 3) and each active term's unweighted value."""
         w = self.weights
         Z = self.lift(C)
@@ -149,15 +157,17 @@ class CageEnergy:
         def add_cage(name, value, g):  # a term of C alone: its rows of Z's gradient
             add(name, value, np.vstack([g, np.zeros((len(Z) - len(C), 3))]))
 
+        # given whenever their terms are on (a target or a symmetry axis; landmarks)
+        W_samples, W_landmarks = cast(Floats, self.W_samples), cast(Floats, self.W_landmarks)
         Y = None
         if w["chamfer"] and self.target is not None:
-            Y = self.W_samples @ Z
+            Y = W_samples @ Z
             value, g = (losses.partial_chamfer_loss(Y, self.target, self.tree) if self.partial
                         else losses.chamfer_loss(Y, self.target, self.tree))
-            add("chamfer", value, self.W_samples.T @ g)
+            add("chamfer", value, W_samples.T @ g)
         if w["landmarks"] and self.landmarks is not None:
-            value, g = losses.landmark_loss(self.W_landmarks @ Z, self.landmarks)
-            add("landmarks", value, self.W_landmarks.T @ g)
+            value, g = losses.landmark_loss(W_landmarks @ Z, self.landmarks)
+            add("landmarks", value, W_landmarks.T @ g)
         if w["p2f"] or w["normal"]:
             shape, g = losses.shape_losses(self.W_shape @ Z, self.shape_ref, w["p2f"],
                                            w["normal"])
@@ -165,10 +175,10 @@ class CageEnergy:
             energy += sum(w[name] * value for name, value in shape.items())
             grad += self.W_shape.T @ g
         if w["symmetry"] and self.symmetry is not None:
-            Y = self.W_samples @ Z if Y is None else Y
+            Y = W_samples @ Z if Y is None else Y
             v_shape, g_shape = losses.symmetry_loss(Y, self.symmetry)
             v_cage, g_cage = losses.cage_symmetry_loss(C, *self.partners, self.symmetry)
-            g = self.W_samples.T @ g_shape
+            g = W_samples.T @ g_shape
             g[:len(C)] += g_cage
             add("symmetry", v_shape + v_cage, g)
         if w["cage"]:
@@ -182,7 +192,7 @@ class CageEnergy:
             grad = grad[:len(C)] + self.face_terms.vjp(C, grad[len(C):])
         return energy, grad, values
 
-    def __call__(self, C):
+    def __call__(self, C: Vertices) -> tuple[float, Vertices]:
         """Weighted energy and its gradient, shape (k, 3)."""
         energy, grad, _ = self.evaluate(C)
         return energy, grad
@@ -196,7 +206,9 @@ def _lifted(C, face_terms):
 # -------------------------------------------------------------------------- the methods
 
 
-def term_weights(user, landmarks, symmetry, reference):
+def term_weights(user: Mapping[str, float] | None,
+                 landmarks: tuple[ArrayLike, ArrayLike] | None, symmetry: str | None,
+                 reference: str) -> dict[str, float]:
     weights = dict(DEFAULT_WEIGHTS)
     if reference == "source":
         weights["cage"] = SOURCE_REFERENCE_CAGE_WEIGHT
@@ -232,7 +244,7 @@ def _shape_rows(Vs_n, Fs, shape_points, rng):
     return used, own, inverse[len(rows):].reshape(index.shape), mask
 
 
-def box_factors(Vs_n, Vt_n, target_kind) -> np.ndarray:
+def box_factors(Vs_n: ArrayLike, Vt_n: ArrayLike, target_kind: str) -> Floats:
     """The coarse stage's per-axis factors: :func:`~cagekit.geometry.alignment.box_scale`, or
     :func:`~cagekit.geometry.alignment.partial_box_scale` onto a partial target."""
     return (partial_box_scale if target_kind == "partial" else box_scale)(Vs_n, Vt_n)
@@ -299,7 +311,7 @@ class CageProblem:
     energy: CageEnergy
     weights: dict
 
-    def vertices_of(self, C) -> np.ndarray:
+    def vertices_of(self, C: Vertices) -> Vertices:
         """The deformed source for a deformed cage ``C`` (k, 3), target's unit frame."""
         return self.W_vertices @ self.energy.lift(C)
 
@@ -334,8 +346,7 @@ class CageProblem:
         parts = [Vs_n, S] + ([src_lm] if src_lm is not None else [])
         binding = bind(np.concatenate(parts), cage_v, cage_f, method=coords, check=False)
         face_terms = None
-        if coords == "green":
-
+        if isinstance(binding, GreenBinding):
             W = np.hstack([binding.phi, binding.psi])
             face_terms = FaceTerms(binding.cage_v, binding.cage_f)
         else:
@@ -413,8 +424,9 @@ class _Remembered:
         return value, grad
 
 
-def solve(problem: CageProblem, start=None, *, max_evaluations: int = 60,
-          tolerance: float = 1e-7, progress=None) -> CageSolution:
+def solve(problem: CageProblem, start: Vertices | None = None, *, max_evaluations: int = 60,
+          tolerance: float = 1e-7,
+          progress: Callable[[int, int], object] | None = None) -> CageSolution:
     """Minimise a :class:`CageProblem`'s energy over the cage by L-BFGS.
 
     Parameters

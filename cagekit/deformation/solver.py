@@ -17,13 +17,16 @@ has returned), where what the handler raises is kept the same way.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import nlopt
 import numpy as np
+from numpy.typing import ArrayLike
 
 from cagekit.errors import exception_chain
 from cagekit.interrupts import sigint_deferred
+from cagekit.typed import Floats
 
 __all__ = ["Minimum", "minimise"]
 
@@ -47,8 +50,9 @@ class Minimum:
     evaluations: int
 
 
-def minimise(objective, x0, max_evaluations: int, tolerance: float,
-             progress=None) -> Minimum:
+def minimise(objective: Callable[[Floats], tuple[float, ArrayLike]], x0: ArrayLike,
+             max_evaluations: int, tolerance: float,
+             progress: Callable[[int, int], object] | None = None) -> Minimum:
     """Minimise ``objective`` by L-BFGS from ``x0``; restarted once when the search fails.
 
     Parameters
@@ -101,7 +105,9 @@ class _Search:
     """The objective as nlopt calls it: the best point seen, the calls, and the exception
     that stopped the search (raised again once nlopt has returned)."""
 
-    def __init__(self, objective, x0, max_evaluations, progress, pending):
+    def __init__(self, objective: Callable[[Floats], tuple[float, ArrayLike]], x0: Floats,
+                 max_evaluations: int, progress: Callable[[int, int], object] | None,
+                 pending: Callable[[], object]) -> None:
         self.objective, self.shape = objective, x0.shape
         self.max_evaluations, self.progress, self.pending = max_evaluations, progress, pending
         self.best_f, self.best_x = np.inf, x0.ravel().copy()

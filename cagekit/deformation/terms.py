@@ -22,10 +22,12 @@ from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse
+from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
 from cagekit.errors import InputError
 from cagekit.metrics import nearest_residuals
+from cagekit.typed import Bools, Floats, Ints, Vertices
 
 __all__ = [
     "ALPHA_MVC",
@@ -100,7 +102,7 @@ def _chamfer_pair(P, Q, tree_Q=None, weight_pq=1.0):
     return _finite(value, "Chamfer distance"), grad_P, grad_Q
 
 
-def chamfer_loss(P, Q, tree_Q: cKDTree | None = None) -> tuple[float, np.ndarray]:
+def chamfer_loss(P: Vertices, Q: Vertices, tree_Q: cKDTree | None = None) -> tuple[float, Vertices]:
     """Chamfer distance between moving points ``P`` and fixed points ``Q``, with ``dL/dP``.
 
     Parameters
@@ -129,8 +131,8 @@ def chamfer_loss(P, Q, tree_Q: cKDTree | None = None) -> tuple[float, np.ndarray
     return value, grad_P
 
 
-def partial_chamfer_loss(P, Q, tree_Q: cKDTree | None = None,
-                         source_weight: float = 0.1) -> tuple[float, np.ndarray]:
+def partial_chamfer_loss(P: Vertices, Q: Vertices, tree_Q: cKDTree | None = None,
+                         source_weight: float = 0.1) -> tuple[float, Vertices]:
     """Chamfer onto a partial target: the moving points' own direction down-weighted.
 
     A scan seen from one side covers only part of the target: every scanned point
@@ -164,7 +166,7 @@ def partial_chamfer_loss(P, Q, tree_Q: cKDTree | None = None,
     return value, grad_P
 
 
-def landmark_loss(P, T) -> tuple[float, np.ndarray]:
+def landmark_loss(P: Vertices, T: Vertices) -> tuple[float, Vertices]:
     """Mean squared distance between corresponding points, with ``dL/dP``.
 
     Parameters
@@ -197,7 +199,7 @@ def axis_index(axis: str) -> int:
     return AXES[axis]
 
 
-def mirror(P, axis: str) -> np.ndarray:
+def mirror(P: ArrayLike, axis: str) -> Vertices:
     """Reflect points across the plane through the origin normal to ``axis``.
 
     Parameters
@@ -219,7 +221,7 @@ def mirror(P, axis: str) -> np.ndarray:
     return out
 
 
-def symmetry_loss(P, axis: str) -> tuple[float, np.ndarray]:
+def symmetry_loss(P: Vertices, axis: str) -> tuple[float, Vertices]:
     """Chamfer distance between a point set and its mirror image, with ``dL/dP``.
 
     Both sets move with ``P``: the gradient sums the direct part and the part through the
@@ -245,7 +247,7 @@ def symmetry_loss(P, axis: str) -> tuple[float, np.ndarray]:
     return value, grad_P + mirror(grad_Q, axis)
 
 
-def mirror_partners(C_ref, axis: str) -> tuple[np.ndarray, np.ndarray]:
+def mirror_partners(C_ref: Vertices, axis: str) -> tuple[Ints, Vertices]:
     """Each vertex's mirror partner in a rest cage, and its rest offset from the partner.
 
     Parameters
@@ -274,7 +276,8 @@ def mirror_partners(C_ref, axis: str) -> tuple[np.ndarray, np.ndarray]:
     return partner, C_ref - M[partner]
 
 
-def cage_symmetry_loss(C, partner, offset, axis: str) -> tuple[float, np.ndarray]:
+def cage_symmetry_loss(C: Vertices, partner: Ints, offset: Vertices,
+                       axis: str) -> tuple[float, Vertices]:
     """Change of each cage vertex's offset from its rest mirror partner, with ``dL/dC``.
 
     ``mean_i |C_i - mirror(C_partner(i)) - offset_i|^2``. For a symmetric rest cage
@@ -308,7 +311,8 @@ def cage_symmetry_loss(C, partner, offset, axis: str) -> tuple[float, np.ndarray
     return _finite(value, "cage symmetry loss"), grad
 
 
-def laplacian_loss(C, L: scipy.sparse.spmatrix, C_ref) -> tuple[float, np.ndarray]:
+def laplacian_loss(C: Vertices, L: scipy.sparse.spmatrix,
+                   C_ref: Vertices) -> tuple[float, Vertices]:
     """Change of a cage's Laplacian coordinates, with ``dL/dC``.
 
     Parameters
@@ -338,7 +342,7 @@ def laplacian_loss(C, L: scipy.sparse.spmatrix, C_ref) -> tuple[float, np.ndarra
     return _finite(value, "cage Laplacian loss"), 2.0 * (L.T @ R) / R.size
 
 
-def mvc_loss(W) -> tuple[float, np.ndarray]:
+def mvc_loss(W: ArrayLike) -> tuple[float, Floats]:
     """Mean squared negative mean value coordinate, ``L_MVC`` of the paper, with ``dL/dW``.
 
     Mean value coordinates of points outside the cage's kernel go negative, which makes
@@ -392,7 +396,7 @@ class ShapeReference(NamedTuple):
     """
 
     own: np.ndarray
-    index: np.ndarray
+    index: np.ndarray  # type: ignore[assignment]  # a field named as tuple.index, on purpose
     mask: np.ndarray
     normals: np.ndarray
     distances: np.ndarray
@@ -416,7 +420,8 @@ def _planes(X, index, mask):
 PLANE_GAP = 1e-3
 
 
-def shape_reference(X, own, index, mask) -> ShapeReference:
+def shape_reference(X: Vertices, own: ArrayLike, index: ArrayLike,
+                    mask: ArrayLike) -> ShapeReference:
     """Rest normals and point-to-plane distances of the given neighbourhoods.
 
     Neighbourhoods without a plane (:data:`PLANE_GAP`: points on a line, as along a
@@ -447,7 +452,7 @@ def shape_reference(X, own, index, mask) -> ShapeReference:
     index = np.asarray(index, dtype=np.int64)
     mask = np.asarray(mask, dtype=bool)
     lam, vec, centroid, _, _ = _planes(X, index, mask)
-    keep = lam[:, 1] - lam[:, 0] > PLANE_GAP * lam[:, 2]
+    keep: Bools = lam[:, 1] - lam[:, 0] > PLANE_GAP * lam[:, 2]
     own, index, mask, centroid = own[keep], index[keep], mask[keep], centroid[keep]
     normals = vec[keep, :, 0]
     distances = np.einsum("rk,rk->r", X[own] - centroid, normals)
@@ -473,8 +478,8 @@ def _normal_backward(g, lam, vec, D, m, mask):
     return (2.0 / m)[:, None, None] * np.matmul(D, G.transpose(0, 2, 1)) * mask[:, :, None]
 
 
-def shape_losses(X, ref: ShapeReference, p2f_weight: float = 1.0,
-                 normal_weight: float = 1.0) -> tuple[dict, np.ndarray]:
+def shape_losses(X: Vertices, ref: ShapeReference, p2f_weight: float = 1.0,
+                 normal_weight: float = 1.0) -> tuple[dict[str, float], Vertices]:
     """:func:`p2f_loss` and :func:`normal_loss` together, from one eigen-decomposition.
 
     Parameters
@@ -532,7 +537,7 @@ def shape_losses(X, ref: ShapeReference, p2f_weight: float = 1.0,
     return values, grad
 
 
-def normal_loss(X, ref: ShapeReference) -> tuple[float, np.ndarray]:
+def normal_loss(X: Vertices, ref: ShapeReference) -> tuple[float, Vertices]:
     """Change of PCA normals, ``mean_i (1 - |n_i(X) . n_i^0|)``, with ``dL/dX``.
 
     Parameters
@@ -559,7 +564,7 @@ def normal_loss(X, ref: ShapeReference) -> tuple[float, np.ndarray]:
     return values["normal"], grad
 
 
-def p2f_loss(X, ref: ShapeReference) -> tuple[float, np.ndarray]:
+def p2f_loss(X: Vertices, ref: ShapeReference) -> tuple[float, Vertices]:
     """Change of point-to-plane distances, ``mean_i (d_i(X) - d_i^0)^2``, with ``dL/dX``.
 
     ``d_i = n_i . (x_i - c_i)``: the signed distance of vertex ``i`` to the PCA plane of
@@ -594,12 +599,13 @@ class PartBases(NamedTuple):
     """Per part of a shape, an orthonormal basis of the affine functions of its rest points
     (:func:`part_bases`)."""
 
-    index: np.ndarray  # (p,) int64: the rows of the points of every part, part after part
+    # (p,) int64: the rows of the points of every part, part after part
+    index: np.ndarray  # type: ignore[assignment]  # a field named as tuple.index, on purpose
     starts: np.ndarray  # (parts + 1,) int64: part i is index[starts[i]:starts[i + 1]]
     bases: tuple  # per part, (n_i, r_i) float64 with orthonormal columns, r_i <= 4
 
 
-def part_bases(X_rest, labels, min_points: int = 30) -> PartBases:
+def part_bases(X_rest: ArrayLike, labels: ArrayLike, min_points: int = 30) -> PartBases:
     """The affine span of each part's rest points, for :func:`part_affinity_loss`.
 
     Parameters
@@ -636,11 +642,11 @@ def part_bases(X_rest, labels, min_points: int = 30) -> PartBases:
         bases.append(U[:, sigma > 1e-9 * sigma[0]])
         index.append(rows)
         starts.append(starts[-1] + len(rows))
-    index = np.concatenate(index) if index else np.zeros(0, np.int64)
-    return PartBases(index.astype(np.int64), np.array(starts, np.int64), tuple(bases))
+    rows_all = np.concatenate(index) if index else np.zeros(0, np.int64)
+    return PartBases(rows_all.astype(np.int64), np.array(starts, np.int64), tuple(bases))
 
 
-def part_affinity_loss(X, parts: PartBases) -> tuple[float, np.ndarray]:
+def part_affinity_loss(X: ArrayLike, parts: PartBases) -> tuple[float, Vertices]:
     """How far each part is from an affine map of its rest points, with ``dL/dX``.
 
     Parameters
@@ -681,7 +687,7 @@ def part_affinity_loss(X, parts: PartBases) -> tuple[float, np.ndarray]:
     return _finite(value / count, "part affinity loss"), grad
 
 
-def part_affinity_matrix(W, parts: PartBases) -> np.ndarray:
+def part_affinity_matrix(W: ArrayLike, parts: PartBases) -> Floats:
     """:func:`part_affinity_loss` of points ``W @ C`` as a quadratic form of ``C``.
 
     Parameters
@@ -719,7 +725,7 @@ def part_affinity_matrix(W, parts: PartBases) -> np.ndarray:
 # ------------------------------------------------------------------------------ detail
 
 
-def detail_matrix(W, L: scipy.sparse.spmatrix) -> np.ndarray:
+def detail_matrix(W: ArrayLike, L: scipy.sparse.spmatrix) -> Floats:
     """The change of a surface's Laplacian coordinates, ``L (W C - W C_ref)``, as a
     quadratic form of the cage ``C``.
 
@@ -756,7 +762,7 @@ def detail_matrix(W, L: scipy.sparse.spmatrix) -> np.ndarray:
     return LW.T @ LW / (3.0 * len(LW))
 
 
-def detail_loss(C, Q, C_ref) -> tuple[float, np.ndarray]:
+def detail_loss(C: Vertices, Q: Floats, C_ref: Vertices) -> tuple[float, Vertices]:
     """:func:`detail_matrix`'s quadratic form at a cage ``C``, with ``dL/dC``.
 
     Parameters

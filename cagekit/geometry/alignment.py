@@ -12,9 +12,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from cagekit.errors import InputError
 from cagekit.geometry import as_vertices
+from cagekit.typed import Floats, Vertices
 
 __all__ = ["box_scale", "partial_box_scale", "Similarity", "similarity_alignment",
            "box_alignment", "FLAT"]
@@ -23,7 +25,7 @@ __all__ = ["box_scale", "partial_box_scale", "Similarity", "similarity_alignment
 FLAT = 1e-9
 
 
-def box_scale(Vs_n, Vt_n) -> np.ndarray:
+def box_scale(Vs_n: ArrayLike, Vt_n: ArrayLike) -> Floats:
     """Per-axis factors mapping the bounding box of one centred shape onto another's.
 
     Parameters
@@ -48,7 +50,7 @@ def box_scale(Vs_n, Vt_n) -> np.ndarray:
     return np.where(flat, 1.0, ht / np.where(flat, 1.0, hs))
 
 
-def partial_box_scale(Vs_n, Vt_n) -> np.ndarray:
+def partial_box_scale(Vs_n: ArrayLike, Vt_n: ArrayLike) -> Floats:
     """:func:`box_scale` onto a scan seen from one side: no factor below the median.
 
     A scan covers the target's extent across the view and only part of it along the
@@ -96,15 +98,15 @@ class Similarity:
     def identity(cls) -> Similarity:
         return cls(1.0, np.eye(3), np.zeros(3))
 
-    def apply(self, X) -> np.ndarray:
+    def apply(self, X: ArrayLike) -> Vertices:
         """(n, 3) points -> (n, 3) mapped points (float64)."""
         return self.scale * np.asarray(X, dtype=np.float64) @ self.rotation.T + self.translation
 
-    def invert(self, Y) -> np.ndarray:
+    def invert(self, Y: ArrayLike) -> Vertices:
         """The inverse map: (n, 3) -> (n, 3)."""
         return (np.asarray(Y, dtype=np.float64) - self.translation) @ self.rotation / self.scale
 
-    def apply_vectors(self, D) -> np.ndarray:
+    def apply_vectors(self, D: ArrayLike) -> Vertices:
         """Displacements mapped by the linear part only: (n, 3) -> (n, 3)."""
         return self.scale * np.asarray(D, dtype=np.float64) @ self.rotation.T
 
@@ -113,7 +115,7 @@ class Similarity:
                 "translation": self.translation.tolist()}
 
 
-def similarity_alignment(P, Q) -> Similarity:
+def similarity_alignment(P: ArrayLike, Q: ArrayLike) -> Similarity:
     """The similarity ``A`` minimising ``sum_i |A(p_i) - q_i|**2`` (Umeyama 1991).
 
     Parameters
@@ -155,7 +157,7 @@ def similarity_alignment(P, Q) -> Similarity:
     return Similarity(scale, R, mq - scale * R @ mp)
 
 
-def box_alignment(source_v, target_v, up: int = 1) -> Similarity:
+def box_alignment(source_v: ArrayLike, target_v: ArrayLike, up: int = 1) -> Similarity:
     """Match bounding-box centres and heights: no rotation.
 
     Parameters

@@ -11,6 +11,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from cagekit.errors import InputError
+from cagekit.typed import Faces, Vertices
 
 __all__ = ["as_count", "as_faces", "as_shape", "as_vertices", "remove_duplicate_faces"]
 
@@ -105,7 +106,8 @@ def as_faces(F: ArrayLike | None, n_vertices: int, name: str = "F") -> np.ndarra
     return arr
 
 
-def as_shape(shape, faces=None, name: str = "shape") -> tuple[np.ndarray, np.ndarray]:
+def as_shape(shape: object, faces: ArrayLike | None = None,
+             name: str = "shape") -> tuple[Vertices, Faces]:
     """Check and convert a shape given in any of the accepted forms: ``(V, F)``.
 
     The one shape checker of cagekit: every function that takes a shape calls it.
@@ -155,7 +157,7 @@ def as_shape(shape, faces=None, name: str = "shape") -> tuple[np.ndarray, np.nda
     return V, as_faces(F, len(V), f"{name} faces")
 
 
-def as_count(n, name: str, minimum: int = 0) -> int:
+def as_count(n: object, name: str, minimum: int = 0) -> int:
     """``n`` as an int, or :class:`~cagekit.errors.InputError` if it is not an integer
     (bools are not) of at least ``minimum``.
 

@@ -144,7 +144,7 @@ def surface_laplacian(V: ArrayLike, F: ArrayLike) -> scipy.sparse.csr_matrix:
     return cotangent_laplacian(V, F)
 
 
-def uniform_laplacian(n: int, edges) -> scipy.sparse.csr_matrix:
+def uniform_laplacian(n: int, edges: ArrayLike) -> scipy.sparse.csr_matrix:
     """The graph Laplacian ``D - A`` of ``n`` vertices joined by ``edges`` (unit weights).
 
     Parameters

@@ -21,6 +21,7 @@ from scipy.spatial import cKDTree
 
 from cagekit.errors import InputError
 from cagekit.geometry.checks import as_count, as_faces, as_vertices
+from cagekit.typed import Floats, Vertices
 
 __all__ = ["Neighborhoods", "orient_normals", "pca_normals", "pca_planes", "point_to_plane",
            "vertex_neighborhoods"]
@@ -45,7 +46,7 @@ class Neighborhoods(NamedTuple):
     ``X[nb.index]`` (shape ``(n, m, 3)``) and weight by ``nb.mask``.
     """
 
-    index: np.ndarray
+    index: np.ndarray  # type: ignore[assignment]  # a field named as tuple.index, on purpose
     mask: np.ndarray
 
     @property
@@ -157,7 +158,9 @@ def _planes_chunk(V: np.ndarray, index: np.ndarray, mask: np.ndarray):
     return vecs[:, :, 0], centroid
 
 
-def pca_planes(V: ArrayLike, neighborhoods) -> tuple[np.ndarray, np.ndarray]:
+def pca_planes(
+    V: ArrayLike, neighborhoods: Neighborhoods | tuple[ArrayLike, ArrayLike]
+) -> tuple[Vertices, Vertices]:
     """Least-squares plane of every neighbourhood, evaluated on the given positions.
 
     The plane of vertex ``i`` passes through the centroid of its neighbourhood and has
@@ -254,8 +257,9 @@ def _oriented_planes(V, F, k, neighborhoods):
 
 
 def pca_normals(
-    V: ArrayLike, F: ArrayLike | None = None, k: int = 16, neighborhoods=None
-) -> np.ndarray:
+    V: ArrayLike, F: ArrayLike | None = None, k: int = 16,
+    neighborhoods: Neighborhoods | tuple[ArrayLike, ArrayLike] | None = None,
+) -> Vertices:
     """Unit normal of every vertex from PCA of its neighbourhood, consistently signed.
 
     Parameters
@@ -286,8 +290,9 @@ def pca_normals(
 
 
 def point_to_plane(
-    V: ArrayLike, F: ArrayLike | None = None, k: int = 16, neighborhoods=None
-) -> np.ndarray:
+    V: ArrayLike, F: ArrayLike | None = None, k: int = 16,
+    neighborhoods: Neighborhoods | tuple[ArrayLike, ArrayLike] | None = None,
+) -> Floats:
     """Signed distance of every vertex to the PCA plane of its neighbourhood.
 
     The plane passes through the neighbourhood's centroid with the normal of

@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
+
+from cagekit.typed import Floats
 
 __all__ = ["polar", "vertex_rotations"]
 
 
-def polar(T) -> tuple[np.ndarray, np.ndarray]:
+def polar(T: ArrayLike) -> tuple[Floats, Floats]:
     """Polar decomposition ``T = R S`` of (m, 3, 3) matrices (SVD).
 
     Returns
@@ -35,7 +38,7 @@ def polar(T) -> tuple[np.ndarray, np.ndarray]:
     return R, S
 
 
-def vertex_rotations(rest, moved, edges) -> np.ndarray:
+def vertex_rotations(rest: ArrayLike, moved: ArrayLike, edges: ArrayLike) -> Floats:
     """Per vertex, the rotation best turning its edges at rest into the moved ones.
 
     The polar factor of ``sum_j (x_i - x_j)(v_i - v_j)^T`` over the vertex's edges

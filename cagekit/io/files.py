@@ -21,7 +21,7 @@ __all__ = ["atomic_output", "check_file", "extension", "one_line", "output_folde
            "read_bytes", "read_text"]
 
 
-def extension(path) -> str:
+def extension(path: str | os.PathLike) -> str:
     """The lower-case extension of ``path`` with its dot (``".obj"``), or ``""``."""
     return os.path.splitext(os.fspath(path))[1].lower()
 
@@ -32,7 +32,7 @@ def one_line(exc: BaseException) -> str:
     return text if len(text) <= 200 else text[:197] + "..."
 
 
-def check_file(path, error=InputError) -> None:
+def check_file(path: str | os.PathLike, error: type[InputError] = InputError) -> None:
     """Raise ``error(problem, path)`` unless ``path`` is a non-empty readable file."""
     if os.path.isdir(path):
         raise error("is a directory, not a file", path)
@@ -46,7 +46,7 @@ def check_file(path, error=InputError) -> None:
         raise error("is empty", path)
 
 
-def read_bytes(path, error=InputError) -> bytes:
+def read_bytes(path: str | os.PathLike, error: type[InputError] = InputError) -> bytes:
     """The bytes of a checked, non-blank file; problems raise ``error(problem, path)``."""
     check_file(path, error)
     try:
@@ -59,7 +59,7 @@ def read_bytes(path, error=InputError) -> bytes:
     return data
 
 
-def read_text(path, error=InputError) -> str:
+def read_text(path: str | os.PathLike, error: type[InputError] = InputError) -> str:
     """:func:`read_bytes` decoded as UTF-8 (a BOM dropped, bad bytes replaced)."""
     return read_bytes(path, error).decode("utf-8-sig", errors="replace")
 

@@ -16,13 +16,14 @@ from __future__ import annotations
 import csv
 import json
 import os
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
 from cagekit.errors import InputError, LandmarkFileError
 from cagekit.io.files import atomic_output, extension, one_line, read_text
+from cagekit.typed import Vertices
 
 __all__ = ["SUPPORTED_LANDMARK_EXTENSIONS", "LandmarkMatch", "SurfacePoint", "load_landmarks",
            "match_landmarks", "save_landmarks", "save_picked"]
@@ -273,7 +274,7 @@ class SurfacePoint:
     position: tuple
 
 
-def save_picked(path: str | os.PathLike, points) -> None:
+def save_picked(path: str | os.PathLike, points: Iterable[SurfacePoint]) -> None:
     """Write surface points atomically as a Thea ``.picked`` file (9 columns).
 
     Parameters
@@ -328,13 +329,14 @@ class LandmarkMatch:
         Labels found in one set only (reported, never silently dropped).
     """
 
-    labels: list
-    source: np.ndarray
-    target: np.ndarray
-    source_only: list
-    target_only: list
+    labels: list[str]
+    source: Vertices
+    target: Vertices
+    source_only: list[str]
+    target_only: list[str]
 
-    def unmatched(self, source_name=None, target_name=None, shown: int = 8) -> str | None:
+    def unmatched(self, source_name: str | os.PathLike | None = None,
+                  target_name: str | os.PathLike | None = None, shown: int = 8) -> str | None:
         """One line listing the labels found in one set only, or None when there are none.
 
         Examples
@@ -357,8 +359,9 @@ class LandmarkMatch:
 
 
 def match_landmarks(source: Mapping[str, object], target: Mapping[str, object], *,
-                    minimum: int = 4, require_all: bool = False, source_name=None,
-                    target_name=None) -> LandmarkMatch:
+                    minimum: int = 4, require_all: bool = False,
+                    source_name: str | os.PathLike | None = None,
+                    target_name: str | os.PathLike | None = None) -> LandmarkMatch:
     """Pair two sets of named landmarks by label.
 
     Parameters

@@ -30,6 +30,7 @@ import warnings
 
 import numpy as np
 import trimesh
+from numpy.typing import ArrayLike
 
 from cagekit.errors import InputError, MeshFileError, MeshFileWarning
 from cagekit.io.files import atomic_output, check_file, extension, one_line, read_bytes, read_text
@@ -615,7 +616,7 @@ _READERS = {
 # ----------------------------------------------------------------------------- saving
 
 
-def save_mesh(path: str | os.PathLike, V, F) -> None:
+def save_mesh(path: str | os.PathLike, V: ArrayLike, F: ArrayLike) -> None:
     """Write a triangle mesh atomically, the format chosen by the extension.
 
     Parameters
@@ -653,7 +654,7 @@ def save_mesh(path: str | os.PathLike, V, F) -> None:
         writer(tmp, V, F)
 
 
-def save_points(path: str | os.PathLike, V) -> None:
+def save_points(path: str | os.PathLike, V: ArrayLike) -> None:
     """Write a point cloud atomically, the format chosen by the extension.
 
     Parameters

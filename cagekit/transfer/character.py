@@ -23,8 +23,10 @@ transfer`` (:mod:`cagekit.cli.transfer`). See docs/architecture.md.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import os
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -42,6 +44,7 @@ from cagekit.transfer.character_cage import CharacterCageFit, fit_character_cage
 from cagekit.transfer.loose_pieces import LoosePieces, find_loose_pieces
 from cagekit.transfer.rules import has_rotation, transfer_cage
 from cagekit.transfer.surface_binding import SurfaceBinding, bind_surface, check_coupling
+from cagekit.typed import Vertices
 
 __all__ = ["CharacterCage", "fit_character", "check_landmarks_on_mesh", "corresponds",
            "template_cage_classical", "classical_fitter", "transfer", "cage_oracle",
@@ -103,7 +106,8 @@ class CharacterCage:
     loose: LoosePieces | None = None
 
 
-def landmark_parts(labels, template_points, character_points) -> tuple:
+def landmark_parts(labels: Sequence[str], template_points: ArrayLike,
+                   character_points: ArrayLike) -> tuple[tuple[Vertices, Vertices], ...]:
     """Matched landmarks grouped by the humanoid's rigid part they lie on.
 
     Parameters
@@ -148,10 +152,11 @@ def _parts_of(labels) -> np.ndarray:
     return np.array([landmark_part(str(label)) or "" for label in labels], dtype="<U16")
 
 
-def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
-                  character_f, character_landmarks, *, align: str = "box",
-                  coords: str = "mvc", template_name=None,
-                  character_name=None) -> CharacterCage:
+def fit_character(template_v: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike,
+                  template_landmarks: Mapping[str, ArrayLike], character_v: ArrayLike,
+                  character_f: ArrayLike, character_landmarks: Mapping[str, ArrayLike], *,
+                  align: str = "box", coords: str = "mvc", template_name: str | None = None,
+                  character_name: str | None = None) -> CharacterCage:
     """Fit the template's cage to a character by its landmarks and bind the character.
 
     Parameters
@@ -228,7 +233,7 @@ def fit_character(template_v, cage_v, cage_f, template_landmarks, character_v,
                          loose=loose)
 
 
-def check_landmarks_on_mesh(vertices, landmarks, name: str) -> None:
+def check_landmarks_on_mesh(vertices: ArrayLike, landmarks: ArrayLike, name: str) -> None:
     """Refuse landmarks that lie far from their mesh (another frame or unit than it).
 
     Parameters
@@ -287,11 +292,12 @@ def corresponds(template_v: ArrayLike, template_f: ArrayLike | None, pose_v: Arr
     >>> corresponds(V, F, V + 1, F), corresponds(V, F, V[:3], None)
     (True, False)
     """
-    if len(template_v) != len(pose_v):
+    if len(np.asarray(template_v)) != len(np.asarray(pose_v)):
         return False
-    if template_f is not None and pose_f is not None and len(template_f) and len(pose_f):
-        return np.array_equal(np.asarray(template_f), np.asarray(pose_f))
-    return True
+    if template_f is None or pose_f is None:
+        return True
+    Fs, Fp = np.asarray(template_f), np.asarray(pose_f)
+    return not (len(Fs) and len(Fp)) or np.array_equal(Fs, Fp)
 
 
 def template_cage_classical(template_v: ArrayLike, template_f: ArrayLike | None,
@@ -333,13 +339,16 @@ def template_cage_classical(template_v: ArrayLike, template_f: ArrayLike | None,
         result = deform(Vs, template_f, Vp, pose_f, cage_v, cage_f,
                         DeformOptions(method="cage", max_evaluations=max_evaluations,
                                       seed=seed))
+        if result.deformed_cage_v is None:  # method cage always sets it
+            raise AssertionError("deform returned no deformed cage")
         return result.deformed_cage_v
     if fitter is None:
         fitter = classical_fitter(Vs, cage_v, cage_f, smoothness=smoothness)
     return fitter(Vp)
 
 
-def classical_fitter(template_v, cage_v, cage_f, *, smoothness: float = SMOOTHNESS):
+def classical_fitter(template_v: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike, *,
+                     smoothness: float = SMOOTHNESS) -> Callable[[ArrayLike], Vertices]:
     """The least-squares template fit of :func:`template_cage_classical`, factored once.
 
     ``min_C |W C - V_pose|^2 + smoothness |L (C - C_s)|^2`` has the same matrix for every
@@ -368,7 +377,7 @@ def classical_fitter(template_v, cage_v, cage_f, *, smoothness: float = SMOOTHNE
     solve = np.linalg.pinv(np.vstack([W, r * L]))
     anchor = r * (L @ cage_v)
 
-    def fitter(pose_v) -> np.ndarray:
+    def fitter(pose_v: ArrayLike) -> Vertices:
         C = solve @ np.vstack([np.asarray(pose_v, np.float64), anchor])
         if not np.isfinite(C).all():
             raise FloatingPointError("the cage fit produced NaN or inf positions")
@@ -377,8 +386,8 @@ def classical_fitter(template_v, cage_v, cage_f, *, smoothness: float = SMOOTHNE
     return fitter
 
 
-def transfer(character: CharacterCage, deformed_template_cage_v,
-             rule: str = "pose", *, refine: bool = True, root: str = "follow") -> np.ndarray:
+def transfer(character: CharacterCage, deformed_template_cage_v: ArrayLike,
+             rule: str = "pose", *, refine: bool = True, root: str = "follow") -> Vertices:
     """The character deformed like the template.
 
     Parameters
@@ -422,7 +431,7 @@ def transfer(character: CharacterCage, deformed_template_cage_v,
     return X
 
 
-def cage_oracle(weights, truth_v) -> tuple[np.ndarray, np.ndarray]:
+def cage_oracle(weights: ArrayLike, truth_v: ArrayLike) -> tuple[Vertices, Vertices]:
     """The best a cage can do: its least-squares motion onto a known result (the oracle).
 
     A transfer rule moves the character's cage; no rule can do better than the cage
@@ -463,11 +472,15 @@ def cage_oracle(weights, truth_v) -> tuple[np.ndarray, np.ndarray]:
                          f"{W.shape} and {truth.shape}")
     if not (np.isfinite(W).all() and np.isfinite(truth).all()):
         raise InputError("cage_oracle: the weights or the truth hold NaN or inf")
-    cage_v = np.linalg.lstsq(W, truth, rcond=None)[0]
+    # float64 from float64 (numpy's stubs say only "floating")
+    cage_v = cast(Vertices, np.linalg.lstsq(W, truth, rcond=None)[0])
     return cage_v, W @ cage_v
 
 
-def render_grid(path, rows, titles=None, labels=None, panel=(240, 300)) -> None:
+def render_grid(path: str | os.PathLike[str],
+                rows: Sequence[Sequence[tuple[ArrayLike, ArrayLike]]],
+                titles: Sequence[str] | None = None, labels: Sequence[str] | None = None,
+                panel: tuple[int, int] = (240, 300)) -> None:
     """Rows of meshes in one PNG (atomic): for example template poses above, the
     transferred character below.
 

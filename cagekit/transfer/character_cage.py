@@ -37,8 +37,10 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from cagekit.cage import (
     check_cage,
@@ -127,7 +129,7 @@ class CharacterCageFit:
     seconds: float = 0.0
 
 
-def cage_checks(points, cage_v, cage_f) -> dict:
+def cage_checks(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike) -> dict[str, Any]:
     """Is a cage fit to deform ``points``?
 
     Parameters
@@ -245,7 +247,8 @@ def _contact_rows(points, C, F, k, margin):
     return rows, points + margin * direction, active
 
 
-def fit_character_cage(cage_v, cage_f, source_landmarks, target_landmarks, character_v, *,
+def fit_character_cage(cage_v: ArrayLike, cage_f: ArrayLike, source_landmarks: ArrayLike,
+                       target_landmarks: ArrayLike, character_v: ArrayLike, *,
                        alignment: Similarity,
                        landmark_weight: float = LANDMARK_WEIGHT, margin: float = MARGIN,
                        iterations: int = ITERATIONS, rounds: int = ROUNDS,
@@ -419,7 +422,8 @@ class _Fit:
             if enclose and len(self.contacts):
                 r, t, active = _contact_rows(self.X[self.contacts], C, self.F, len(C),
                                              self.gap)
-                rows.append(r), targets.append(t)
+                rows.append(r)
+                targets.append(t)
                 weights.append(self.contact_weight * self.boost[self.contacts[active]])
             H, b, c0 = self.solver.quadratic(C, np.vstack(rows), np.vstack(targets),
                                              np.concatenate(weights))
@@ -453,7 +457,7 @@ def _named(counts: dict, unit: str = "") -> str:
     return shown + (f" and {len(items) - NAMED} more" if len(items) > NAMED else "")
 
 
-def missed_landmarks(misses, labels: Sequence[str],
+def missed_landmarks(misses: ArrayLike, labels: Sequence[str],
                      limit: float = MAX_LANDMARK_ERROR) -> dict[str, float]:
     """The landmarks missed by more than ``limit``, the worst first.
 
@@ -482,7 +486,8 @@ def missed_landmarks(misses, labels: Sequence[str],
     return {labels[i]: float(misses[i]) for i in order if misses[i] > limit}
 
 
-def nearest_landmarks(points, landmarks, labels: Sequence[str]) -> dict[str, int]:
+def nearest_landmarks(points: ArrayLike, landmarks: ArrayLike,
+                      labels: Sequence[str]) -> dict[str, int]:
     """For points (left outside a cage, say), the label of each one's nearest landmark,
     counted: which parts of the body they belong to.
 

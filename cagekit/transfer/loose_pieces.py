@@ -25,12 +25,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
 from cagekit.cage import vertex_components
 from cagekit.datasets.humanoid import RIGID_PARENTS
 from cagekit.errors import InputError
 from cagekit.geometry import as_faces, as_vertices
+from cagekit.typed import Vertices
 
 __all__ = ["LoosePieces", "find_loose_pieces", "CONTACT", "CONTACT_PAIRS", "LOOSE_MENDED",
            "LOOSE_SIZE"]
@@ -66,7 +68,7 @@ class LoosePieces:
     touching: tuple
     touched: tuple
 
-    def reattach(self, rest_v, deformed_v) -> np.ndarray:
+    def reattach(self, rest_v: ArrayLike, deformed_v: ArrayLike) -> Vertices:
         """The deformed mesh with each loose piece moved back to what it touched.
 
         Parameters
@@ -107,7 +109,8 @@ class LoosePieces:
         return out
 
 
-def find_loose_pieces(vertices, faces, mended, parts=None) -> LoosePieces:
+def find_loose_pieces(vertices: ArrayLike, faces: ArrayLike, mended: ArrayLike,
+                      parts: ArrayLike | None = None) -> LoosePieces:
     """The loose pieces of a mesh, and what each touched at rest (see the module).
 
     Parameters
@@ -224,5 +227,7 @@ def _related(part: str) -> set[str] | None:
     """The part, its parent and its children; None (any) for a vertex of no part."""
     if part not in RIGID_PARENTS:
         return None
-    return {part, RIGID_PARENTS[part], *(c for c, p in RIGID_PARENTS.items() if p == part)}
+    parent = RIGID_PARENTS[part]  # None for the root
+    return {part, *([] if parent is None else [parent]),
+            *(c for c, p in RIGID_PARENTS.items() if p == part)}
 

@@ -28,10 +28,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from cagekit.cage import unique_edges
 from cagekit.errors import InputError
 from cagekit.geometry import as_vertices, uniform_laplacian, vertex_rotations
+from cagekit.typed import Floats
 
 __all__ = ["RobustArap", "robust_arap", "strain_trust", "STIFFNESS", "ITERATIONS"]
 
@@ -59,9 +61,10 @@ class RobustArap:
     trust: np.ndarray
 
 
-def robust_arap(rest_v, faces, proposal, *, sigma: float, confidence=None,
-                scale: float = 1.0, stiffness: float = STIFFNESS,
-                iterations: int = ITERATIONS, edges=None) -> RobustArap:
+def robust_arap(rest_v: ArrayLike, faces: ArrayLike, proposal: ArrayLike, *, sigma: float,
+                confidence: ArrayLike | None = None, scale: float = 1.0,
+                stiffness: float = STIFFNESS, iterations: int = ITERATIONS,
+                edges: ArrayLike | None = None) -> RobustArap:
     """The as-rigid-as-possible deformation of ``rest_v`` nearest a proposal, robustly.
 
     Minimises ``sum_ij |(x_i - x_j) - R_i scale (v_i - v_j)|^2 + stiffness sum_i t_i |x_i -
@@ -145,7 +148,8 @@ def robust_arap(rest_v, faces, proposal, *, sigma: float, confidence=None,
     return RobustArap(vertices=X, trust=trust)
 
 
-def strain_trust(rest_v, proposal, edges, *, sigma: float, scale: float = 1.0) -> np.ndarray:
+def strain_trust(rest_v: ArrayLike, proposal: ArrayLike, edges: ArrayLike, *, sigma: float,
+                 scale: float = 1.0) -> Floats:
     """How far a proposal's edges at each point keep their rest length: ``1 / (1 + (s /
     sigma)^2)``, ``s`` the largest ``| |p_i - p_j| - scale |v_i - v_j| |`` over the point's
     edges (1 for a point without edges, and wherever the proposal is a similarity of the

@@ -37,10 +37,12 @@ Both work in the template's frame: ``alignment`` maps it to the character's.
 from __future__ import annotations
 
 import functools
+from collections.abc import Sequence
 
 import numpy as np
 import scipy.sparse
 import scipy.sparse.linalg
+from numpy.typing import ArrayLike
 
 from cagekit.cage import face_components, winding_numbers
 from cagekit.coords.mvc import mean_value_coordinates
@@ -48,6 +50,7 @@ from cagekit.errors import InputError
 from cagekit.geometry import as_vertices, polar
 from cagekit.geometry.alignment import Similarity, similarity_alignment
 from cagekit.geometry.frame import Frame
+from cagekit.typed import Floats, Vertices
 
 __all__ = ["RULES", "PART_ANGLE", "PART_REACH", "PART_SPREAD", "SHAPE_NOISE", "face_gradients",
            "has_rotation", "polar", "root_weights", "shape_rotations", "transfer_offsets",
@@ -92,7 +95,7 @@ def _frames(V, F) -> np.ndarray:
     return np.stack([e1, e2, n / np.sqrt(length)], axis=2)
 
 
-def face_gradients(rest_v, deformed_v, faces) -> np.ndarray:
+def face_gradients(rest_v: ArrayLike, deformed_v: ArrayLike, faces: ArrayLike) -> Floats:
     """Per-face deformation gradients of a triangle mesh (Sumner & Popovic 2004).
 
     Parameters
@@ -120,8 +123,8 @@ def face_gradients(rest_v, deformed_v, faces) -> np.ndarray:
     return moved @ np.linalg.inv(rest)
 
 
-def transfer_offsets(template_cage_v, deformed_template_cage_v, character_cage_v,
-                     alignment: Similarity) -> np.ndarray:
+def transfer_offsets(template_cage_v: ArrayLike, deformed_template_cage_v: ArrayLike,
+                     character_cage_v: ArrayLike, alignment: Similarity) -> Vertices:
     """The paper's rule ``C_c + A (C_st - C_s)``, A the alignment's linear part.
 
     Parameters
@@ -158,8 +161,9 @@ def _edge_operator(F: np.ndarray, k: int) -> scipy.sparse.csr_matrix:
     return scipy.sparse.csr_matrix((vals, (rows, cols)), shape=(3 * m, k))
 
 
-def transfer_pose(template_cage_v, deformed_template_cage_v, character_cage_v, cage_f,
-                  alignment: Similarity, parts=None) -> np.ndarray:
+def transfer_pose(template_cage_v: ArrayLike, deformed_template_cage_v: ArrayLike,
+                  character_cage_v: ArrayLike, cage_f: ArrayLike, alignment: Similarity,
+                  parts: Sequence[tuple[ArrayLike, ArrayLike]] | None = None) -> Vertices:
     """The pose-aware rule: the template's rotations, the character's stretch (see module).
 
     Parameters
@@ -242,7 +246,8 @@ def transfer_pose(template_cage_v, deformed_template_cage_v, character_cage_v, c
     return alignment.apply(frame.to_world(X))
 
 
-def shape_rotations(template_cage_v, character_cage_v, cage_f, parts) -> np.ndarray:
+def shape_rotations(template_cage_v: ArrayLike, character_cage_v: ArrayLike, cage_f: ArrayLike,
+                    parts: Sequence[tuple[ArrayLike, ArrayLike]]) -> Floats:
     """Per face, the character's own rest rotation with its part's pose taken out.
 
     The face's rotation from the template's rest cage to the character's (``R_c`` of the
@@ -336,7 +341,7 @@ def _angles(R) -> np.ndarray:
     return np.degrees(np.arctan2(np.linalg.norm(axial, axis=-1) / 2.0, cosine))
 
 
-def has_rotation(points) -> bool:
+def has_rotation(points: ArrayLike) -> bool:
     """Whether points determine a rotation: 3 or more, not (nearly) on a line.
 
     Parameters
@@ -385,8 +390,8 @@ def _vertex_components(k, F) -> list[np.ndarray]:
     return [np.unique(F[labels == label]) for label in np.unique(labels)]
 
 
-def root_weights(template_cage_v, deformed_template_cage_v, cage_f,
-                 part: np.ndarray | None = None) -> np.ndarray:
+def root_weights(template_cage_v: ArrayLike, deformed_template_cage_v: ArrayLike,
+                 cage_f: ArrayLike, part: ArrayLike | None = None) -> Floats:
     """The root of a cage's motion, as mean value coordinates in the rest cage.
 
     The centres of a :data:`ROOT_GRID` grid over the rest cage's bounding box, kept where
@@ -492,8 +497,9 @@ def _root_cage(template_cage_v, deformed_template_cage_v, cage_f, part):
     return Cs, Ct, faces
 
 
-def transfer_cage(rule, template_cage_v, deformed_template_cage_v, character_cage_v,
-                  cage_f, alignment: Similarity, parts=None) -> np.ndarray:
+def transfer_cage(rule: str, template_cage_v: ArrayLike, deformed_template_cage_v: ArrayLike,
+                  character_cage_v: ArrayLike, cage_f: ArrayLike, alignment: Similarity,
+                  parts: Sequence[tuple[ArrayLike, ArrayLike]] | None = None) -> Vertices:
     """The character's deformed cage by ``rule`` (``"pose"`` or ``"offsets"``).
 
     Parameters

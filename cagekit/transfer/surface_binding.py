@@ -36,12 +36,14 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from cagekit.cage import unique_edges
-from cagekit.coords import bind
+from cagekit.coords import GreenBinding, bind
 from cagekit.errors import CageFitError, CagekitWarning, InputError
 from cagekit.geometry import as_vertices, uniform_laplacian, vertex_rotations
 from cagekit.transfer.robust_arap import robust_arap
+from cagekit.typed import Floats, Vertices
 
 __all__ = ["SurfaceBinding", "bind_surface", "negative_mass", "coupled_share",
            "check_coupling", "FREE_MASS", "CONFIDENCE_SCALE", "DATA_WEIGHT", "WARN_COUPLED",
@@ -66,7 +68,7 @@ REFINE_SIGMA = 0.05
 MENDED_TRUST = 0.05
 
 
-def negative_mass(weights) -> np.ndarray:
+def negative_mass(weights: ArrayLike) -> Floats:
     """``sum_j max(0, -w_j)`` per row.
 
     Parameters
@@ -85,7 +87,7 @@ def negative_mass(weights) -> np.ndarray:
     return np.maximum(-np.asarray(weights, dtype=np.float64), 0.0).sum(axis=1)
 
 
-def coupled_share(weights) -> float:
+def coupled_share(weights: ArrayLike) -> float:
     """The share of rows whose negative mass exceeds 1 (points bound through a fold).
 
     Examples
@@ -135,9 +137,9 @@ class SurfaceBinding:
     rest_cage: np.ndarray
     rest_vertices: np.ndarray
     faces: np.ndarray
-    green: object = None
+    green: GreenBinding | None = None
 
-    def deform(self, cage_v, *, refine: bool = True) -> np.ndarray:
+    def deform(self, cage_v: ArrayLike, *, refine: bool = True) -> Vertices:
         """The mesh for the cage moved.
 
         Parameters
@@ -170,8 +172,8 @@ class SurfaceBinding:
                            edges=self.edges).vertices
 
 
-def bind_surface(vertices, faces, cage_v, cage_f, *, weights=None,
-                 coords: str = "mvc") -> SurfaceBinding:
+def bind_surface(vertices: ArrayLike, faces: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike, *,
+                 weights: ArrayLike | None = None, coords: str = "mvc") -> SurfaceBinding:
     """Bind a mesh to a cage, mending its coordinates where the cage folds.
 
     Parameters

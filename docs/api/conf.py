@@ -3,7 +3,7 @@
 The reference pages are generated from the docstrings (NumPy style, read by numpydoc) by
 autosummary, recursively over ``cagekit``'s subpackages and modules and ``cagekit_learn``;
 ``cagekit`` itself loads its public names lazily (PEP 562), so its subpackages are listed
-rather than its namespace. The gallery runs the README's library example (docs/examples).
+rather than its namespace. The gallery runs the README's examples (docs/examples).
 The build runs offline: no intersphinx.
 """
 

@@ -1,0 +1,41 @@
+"""
+The command line
+================
+
+The README's "Command line" section on the bundled chairs: ``cagekit fit-cage`` builds a
+checked cage around the source, and ``cagekit deform`` deforms the source onto the
+target's proportions (its cage fitted the same way), each with its ``--preview``
+picture. It runs from the repository root, where ``data/example`` is, and writes into
+``out/gallery/``.
+"""
+
+# sphinx_gallery_start_ignore
+# ruff: noqa: E402 (the example follows after this hidden part)
+import os as _os
+from pathlib import Path as _Path
+
+_os.chdir(_Path.cwd().parents[1])
+# sphinx_gallery_end_ignore
+import subprocess
+import sys
+
+import matplotlib.pyplot as plt
+
+
+def cagekit(*args):
+    """Run a cagekit command (as ``cagekit ARGS`` in a shell) and print what it says."""
+    done = subprocess.run([sys.executable, "-m", "cagekit.cli", *args], check=True,
+                          capture_output=True, text=True)
+    print(done.stdout.strip())
+
+
+cagekit("fit-cage", "data/example/chair_source.obj", "-o", "out/gallery/chair_cage.obj",
+        "--faces", "120", "--preview", "out/gallery/chair_cage.png")
+cagekit("deform", "data/example/chair_source.obj", "data/example/chair_target.obj",
+        "-o", "out/gallery/chair.obj", "--symmetry", "x",
+        "--preview", "out/gallery/chair.png")
+
+for picture in ("out/gallery/chair_cage.png", "out/gallery/chair.png"):
+    plt.figure(figsize=(9, 4))
+    plt.imshow(plt.imread(picture))
+    plt.axis("off")
