@@ -5,6 +5,12 @@ comment the dtype; docstrings give the exact shapes. Inputs are :data:`ArrayLike
 (anything :func:`numpy.asarray` turns into the array asked for, checked by
 :mod:`cagekit.geometry.checks`); outputs are the precise arrays below.
 
+- ``Vertices``: (n, 3) float64 vertices, points, a cage's vertices;
+- ``Faces``: (m, 3) int64 triangles, indices into a vertex array;
+- ``Floats``: float64 of any other shape (weights (n, k), values (n,), matrices);
+- ``Ints``: int64 of any other shape (indices, labels, counts);
+- ``Bools``: bool masks of any shape.
+
 Examples
 --------
 >>> import numpy as np

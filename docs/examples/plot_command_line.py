@@ -36,6 +36,8 @@ cagekit("deform", "data/example/chair_source.obj", "data/example/chair_target.ob
         "--preview", "out/gallery/chair.png")
 
 for picture in ("out/gallery/chair_cage.png", "out/gallery/chair.png"):
-    plt.figure(figsize=(9, 4))
-    plt.imshow(plt.imread(picture))
+    image = plt.imread(picture)
+    height, width = image.shape[:2]
+    plt.figure(figsize=(6 * min(1.5, width / height), 6 * min(1.0, height / width)))
+    plt.imshow(image)
     plt.axis("off")
