@@ -55,8 +55,8 @@ KEYS = ("cd", "dcotlap", "part_worst", "planar_p95", "conformal", "seconds")
 
 
 def compare_pair(source, target, symmetry):
-    """Both coordinates on one pair, the cage fitted once (by the MVC run)."""
-    rows, cage = {}, None
+    """Both coordinates on one pair, the cage fitted once (by the MVC run; none given to it)."""
+    rows, cage = {}, (None, None)
     for coords in COORDS:
         t0 = time.perf_counter()
         try:

@@ -20,7 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+TESTS = Path(__file__).resolve().parents[1] / "tests"
+sys.path[:0] = [str(TESTS), str(TESTS / "coords")]  # test_mvc's cages, and its builders
 
 from test_mvc import CAGES, _near_points, diag, unit_normals  # noqa: E402
 
