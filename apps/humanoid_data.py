@@ -96,7 +96,7 @@ def template_cage(rig, *, kind: str = "artist", faces: int = 196, seed: int = 0)
     if kind == "fit":
         from cagekit.cage.fitting import fit_cage
 
-        cage = fit_cage(rig.vertices, rig.faces, faces=faces, seed=seed)
+        cage = fit_cage(rig.vertices, rig.faces, faces=faces, seed=seed, report=False)
         return cage.vertices, cage.faces
     raise InputError(f"cage must be 'artist' or 'fit', got {kind!r}")
 

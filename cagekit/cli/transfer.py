@@ -197,7 +197,8 @@ def _load(template, template_cage, template_landmarks, character, character_land
         from cagekit.cage.fitting import fit_cage
 
         try:
-            cage_v, cage_f, _ = fit_cage(Vt, Ft, faces=cage_faces, seed=seed)
+            cage_v, cage_f, _ = fit_cage(Vt, Ft, faces=cage_faces, seed=seed,
+                                         report=False)
         except InputError as exc:
             raise InputError(f"cannot fit a cage to the template: {exc.problem}",
                              template) from None

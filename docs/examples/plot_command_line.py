@@ -16,6 +16,7 @@ from pathlib import Path as _Path
 
 _os.chdir(_Path.cwd().parents[1])
 # sphinx_gallery_end_ignore
+import os
 import subprocess
 import sys
 
@@ -24,11 +25,14 @@ import matplotlib.pyplot as plt
 
 def cagekit(*args):
     """Run a cagekit command (as ``cagekit ARGS`` in a shell) and print what it says."""
-    done = subprocess.run([sys.executable, "-m", "cagekit.cli", *args], check=True,
+    done = subprocess.run([sys.executable, "-m", "cagekit.cli", *args],
                           capture_output=True, text=True)
+    if done.returncode != 0:
+        raise SystemExit(f"cagekit {' '.join(args)}: exit {done.returncode}: {done.stderr.strip()}")
     print(done.stdout.strip())
 
 
+os.makedirs("out/gallery", exist_ok=True)   # cagekit writes into folders that exist
 cagekit("fit-cage", "data/example/chair_source.obj", "-o", "out/gallery/chair_cage.obj",
         "--faces", "120", "--preview", "out/gallery/chair_cage.png")
 cagekit("deform", "data/example/chair_source.obj", "data/example/chair_target.obj",
