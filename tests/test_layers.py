@@ -77,3 +77,29 @@ def test_the_architecture_document_maps_every_module_as_the_code_is():
 
     assert architecture.documented() == architecture.block(), \
         "docs/architecture.md's module map is out of date: run make architecture"
+
+
+def test_a_class_is_listed_by_its_own_module_or_a_package_only():
+    """A plain module's ``__all__`` names no class defined in another module.
+
+    autodoc documents what ``__all__`` lists, a re-exported class under its canonical
+    name as well: two pages that re-export one class describe it twice, and the API
+    reference's clean build (warnings are errors) fails or not with the order in which
+    Sphinx reads the pages. A package (``__init__``) re-exports; a module defines.
+    """
+    import importlib
+    import inspect
+    import pkgutil
+
+    found = []
+    for top in ("cagekit", "cagekit_learn"):
+        package = importlib.import_module(top)
+        for info in pkgutil.walk_packages(package.__path__, f"{top}."):
+            if info.ispkg or info.name.endswith("__main__"):
+                continue
+            module = importlib.import_module(info.name)
+            for name in getattr(module, "__all__", ()):
+                value = getattr(module, name)
+                if inspect.isclass(value) and value.__module__ != info.name:
+                    found.append(f"{info.name}.{name} (from {value.__module__})")
+    assert found == []

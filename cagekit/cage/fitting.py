@@ -36,7 +36,7 @@ from cagekit.geometry.sampling import sample_surface
 from cagekit.typed import Faces, Vertices
 
 __all__ = ["fit_cage", "FittedCage", "cage_report", "CageReport", "template_cage",
-           "wrap_input", "check_face_budget", "CageFitError", "METHODS", "MIN_FACES",
+           "wrap_input", "check_face_budget", "METHODS", "MIN_FACES",
            "MAX_FACES"]
 
 METHODS = ("wrap", "template")

@@ -16,7 +16,7 @@ from numpy.typing import ArrayLike
 from cagekit.cage import check_cage
 from cagekit.cage.fitting import fit_cage
 from cagekit.coords.binding import warn_outside
-from cagekit.deformation.options import COORDS, METHODS, TARGET_KINDS, DeformOptions
+from cagekit.deformation.options import DeformOptions
 from cagekit.deformation.problem import (
     LANDMARK_MARGIN,
     CageProblem,
@@ -29,7 +29,7 @@ from cagekit.errors import InputError
 from cagekit.geometry import as_shape, as_vertices
 from cagekit.geometry.frame import Frame
 
-__all__ = ["COORDS", "DeformOptions", "DeformResult", "METHODS", "TARGET_KINDS", "deform"]
+__all__ = ["DeformResult", "deform"]
 
 @dataclass
 class DeformResult:

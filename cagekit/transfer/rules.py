@@ -53,7 +53,7 @@ from cagekit.geometry.frame import Frame
 from cagekit.typed import Floats, Vertices
 
 __all__ = ["RULES", "PART_ANGLE", "PART_REACH", "PART_SPREAD", "SHAPE_NOISE", "face_gradients",
-           "has_rotation", "polar", "root_weights", "shape_rotations", "transfer_offsets",
+           "has_rotation", "root_weights", "shape_rotations", "transfer_offsets",
            "transfer_pose", "transfer_cage"]
 
 #: the rules :func:`transfer_cage` knows
