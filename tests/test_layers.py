@@ -9,6 +9,9 @@ applications may use the command line's shared rules, :mod:`cagekit.cli.common`,
 imports only the core.
 """
 
+import importlib
+import inspect
+
 import pytest
 from architecture import imports
 from architecture import module_files as modules
@@ -87,19 +90,13 @@ def test_a_class_is_listed_by_its_own_module_or_a_package_only():
     reference's clean build (warnings are errors) fails or not with the order in which
     Sphinx reads the pages. A package (``__init__``) re-exports; a module defines.
     """
-    import importlib
-    import inspect
-    import pkgutil
-
     found = []
-    for top in ("cagekit", "cagekit_learn"):
-        package = importlib.import_module(top)
-        for info in pkgutil.walk_packages(package.__path__, f"{top}."):
-            if info.ispkg or info.name.endswith("__main__"):
-                continue
-            module = importlib.import_module(info.name)
-            for name in getattr(module, "__all__", ()):
-                value = getattr(module, name)
-                if inspect.isclass(value) and value.__module__ != info.name:
-                    found.append(f"{info.name}.{name} (from {value.__module__})")
+    for name, path in modules():
+        if name.startswith("apps") or path.name in ("__init__.py", "__main__.py"):
+            continue
+        module = importlib.import_module(name)
+        for member in getattr(module, "__all__", ()):
+            value = getattr(module, member)
+            if inspect.isclass(value) and value.__module__ != name:
+                found.append(f"{name}.{member} (from {value.__module__})")
     assert found == []
