@@ -5,7 +5,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: package-check blender-venv test-blender blender-extension blender-render bench-blender demo test test-emulated test-slow lint docs architecture assets bench bench-assets bench-fit-cage bench-deform bench-learn bench-transfer bench-amplify venv clean
+.PHONY: package-check blender-venv test-blender blender-extension blender-render bench-blender demo test test-emulated test-slow lint docs architecture assets bench bench-assets bench-fit-cage bench-deform bench-learn bench-learn-real bench-transfer bench-amplify models venv clean
 
 $(STAMP): setup.cfg pyproject.toml constraints.txt constraints-common.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -110,6 +110,15 @@ bench-deform: $(STAMP)
 # trains the learned cages for 20 minutes on 300 synthetic chairs, then compares on 50 pairs
 bench-learn: $(STAMP)
 	$(BIN)/python benchmarks/bench_learn.py --json out/bench_learn.json
+
+# the shipped models (cagekit_learn/models/NAME.pt and NAME.json), trained from their recipes
+# on sweethome3d-furniture (chairs: 1,500 steps, about 25 min on 2 cores); commit both files
+models: $(STAMP) assets
+	$(BIN)/python -m cagekit_learn.make_shipped chairs
+
+# the shipped chairs model on unseen real seats, beside per-pair optimisation
+bench-learn-real: $(STAMP) assets
+	$(BIN)/python benchmarks/bench_learn_real.py --model chairs --json out/bench_learn_real.json --pictures out/learn_real
 
 # writes the humanoid data set (out/humanoid), trains the fixed-source model (6000 steps,
 # about 16 min, reused when there) and compares the transfers with ground truth

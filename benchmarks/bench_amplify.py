@@ -2,15 +2,16 @@
 and a local Dask cluster of 2 workers, in one run.
 
 The collection: the chairs of Debian's ``sweethome3d-furniture`` (the three furniture
-catalogs, :func:`bench_deform.furniture_kind` "chair", at most 15,000 vertices), copied into
-``OUT/chairs``. The same 40 variations (seed 0) are made three times into fresh folders; the
-pool and the cluster are started and their workers have imported cagekit before the clock
-starts (their start-up is in the engines table). Printed per mode: variations per minute,
-the median seconds of an item, the peak resident memory of a worker (sampled every 0.1 s
-with psutil; the main process for 1 worker), the share the filter accepted. Then: how much
-faster a source's later pairs are than its first (the cage fitted once, then reused), the
-time of a second run on the finished batch, and the engines' own costs (start-up, per-task
-overhead on a trivial task) for the process pool, Dask distributed and, when installed, Ray.
+catalogs, :func:`cagekit.datasets.sweethome3d.furniture_kind` "chair", at most 15,000
+vertices), copied into ``OUT/chairs``. The same 40 variations (seed 0) are made three times
+into fresh folders; the pool and the cluster are started and their workers have imported
+cagekit before the clock starts (their start-up is in the engines table). Printed per mode:
+variations per minute, the median seconds of an item, the peak resident memory of a worker
+(sampled every 0.1 s with psutil; the main process for 1 worker), the share the filter
+accepted. Then: how much faster a source's later pairs are than its first (the cage fitted
+once, then reused), the time of a second run on the finished batch, and the engines' own
+costs (start-up, per-task overhead on a trivial task) for the process pool, Dask distributed
+and, when installed, Ray.
 ``--sheet`` draws the 1-worker batch's contact sheet afterwards, untimed.
 
 Usage::
@@ -36,10 +37,11 @@ import psutil
 
 sys.path.insert(0, os.path.dirname(__file__))
 
-from bench_deform import MAX_REAL_VERTICES, furniture_kind  # noqa: E402
+from bench_deform import MAX_REAL_VERTICES  # noqa: E402
 
 from cagekit.batch.amplify import amplify, prepare_worker, process_pool  # noqa: E402
 from cagekit.batch.cluster import close, connect  # noqa: E402
+from cagekit.datasets.sweethome3d import furniture_kind  # noqa: E402
 from cagekit.io import load_mesh  # noqa: E402
 
 

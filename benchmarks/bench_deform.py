@@ -50,6 +50,7 @@ import numpy as np
 
 import cagekit
 from cagekit.datasets import synthetic
+from cagekit.datasets.sweethome3d import furniture_kind
 from cagekit.errors import InputError
 from cagekit.io import load_mesh
 
@@ -68,12 +69,6 @@ METHODS = ("scale", "nricp", "cage-bend", "cage", "cage-src")
 MAX_REAL_VERTICES = 15_000
 #: pairs of each furniture kind (the first ones in catalog order)
 PAIRS_PER_KIND = 8
-#: name words of each furniture kind, and words that put a name out of every kind
-KIND_WORDS = (("armchair", ("armchair",)), ("sofa", ("sofa", "couch")),
-              ("stool or bench", ("stool", "bench")), ("chair", ("chair",)),
-              ("table", ("table",)))
-NOT_FURNITURE = ("fan", "tennis", "pool", "football", "bedside", "wheel", "workbench",
-                 "abdominal", "bat", "ottoman")
 #: cage-src is method cage with reference="source" (the paper's reference; see
 #: cagekit/deformation/): same cage fit, every stretch charged
 
@@ -94,14 +89,6 @@ def animal(folder, name):
     if name == "bull":  # faces -x; mirror it (and flip its faces to stay outward)
         V, F = V * [-1.0, 1.0, 1.0], F[:, ::-1].copy()
     return V, F
-
-
-def furniture_kind(name: str) -> str | None:
-    """The kind of a furniture model from its catalog name, or None."""
-    low = name.lower()
-    if any(word in low for word in NOT_FURNITURE):
-        return None
-    return next((kind for kind, words in KIND_WORDS if any(w in low for w in words)), None)
 
 
 @functools.cache

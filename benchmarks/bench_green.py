@@ -45,10 +45,10 @@ def best_of(function, repeats=3):
 def real_case():
     """The largest chair of sweethome3d-furniture's furniture catalogs (at most 15,000
     vertices) and its 200-face fitted cage, or None without the package."""
-    from bench_deform import MAX_REAL_VERTICES, furniture_kind
+    from bench_deform import MAX_REAL_VERTICES
 
     from cagekit.cage.fitting import fit_cage
-    from cagekit.datasets.sweethome3d import FURNITURE_CATALOGS, models
+    from cagekit.datasets.sweethome3d import FURNITURE_CATALOGS, furniture_kind, models
     from cagekit.errors import InputError
     from cagekit.io import load_mesh
 

@@ -9,7 +9,9 @@ coordinates, ``bind``/``deform`` as in the core, matching it in float64),
 DistributedDataParallel under torchrun), :mod:`~cagekit_learn.checkpoint` (atomic, read with
 ``weights_only=True``) and :mod:`~cagekit_learn.inference` (``cagekit deform --model``).
 Install with ``pip install -e '.[learn]'`` (torch 2.13.0); the core package never imports
-this one, nor torch. See docs/architecture.md.
+this one, nor torch. :func:`load_model` takes a run folder, a checkpoint or a shipped
+model's name (``load_model("chairs")``, :mod:`~cagekit_learn.shipped`). See
+docs/architecture.md.
 
 Examples
 --------
@@ -23,11 +25,15 @@ Examples
 ((1, 8), True)
 """
 
-__all__ = ["bind", "deform", "CageBinding", "mean_value_coordinates"]
+__all__ = ["bind", "deform", "CageBinding", "mean_value_coordinates", "load_model"]
 
 
 def __getattr__(name):
     # torch is imported on first use, so that ``cagekit_learn.data`` stays light
+    if name == "load_model":
+        from cagekit_learn.train import load_model
+
+        return load_model
     if name in __all__:
         from cagekit_learn import coords
 

@@ -21,6 +21,7 @@ import torch
 
 from cagekit.errors import InputError
 from cagekit.io.files import atomic_output
+from cagekit_learn.shipped import shipped_checkpoint
 
 __all__ = ["FORMAT", "CHECKPOINT_NAME", "save_checkpoint", "load_checkpoint", "resolve",
            "nonfinite_tensors"]
@@ -30,7 +31,14 @@ CHECKPOINT_NAME = "checkpoint.pt"
 
 
 def resolve(path: str | os.PathLike) -> Path:
-    """A checkpoint file from a path that may name the run folder instead."""
+    """A checkpoint file from a path that may name the run folder or a shipped model.
+
+    An existing path wins; a bare word that is not one names a shipped model
+    (:func:`cagekit_learn.shipped.shipped_checkpoint`, which refuses an unknown one).
+    """
+    shipped = shipped_checkpoint(path)
+    if shipped is not None:
+        return shipped
     path = Path(path)
     return path / CHECKPOINT_NAME if path.is_dir() else path
 

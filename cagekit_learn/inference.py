@@ -1,8 +1,11 @@
 """Deforming a full-resolution mesh with a trained model (``cagekit deform --model``).
 
 One forward pass predicts the source cage and its deformation from 1,024 samples of each
-shape; the full-resolution source is then bound to the predicted cage with the core's
-exact MVC (:func:`cagekit.bind`, float64) and moved with the predicted deformed cage.
+shape; the predicted cage is checked (:func:`cagekit_learn.cage_repair.check_predicted_cage`:
+grown when it leaves part of the source out, refused when it intersects itself or cannot
+be grown to enclose it, and then the pair is deformed by :func:`cagekit.deform` with a
+fitted cage, with one warning); the full-resolution source is then bound to the cage with
+the core's exact MVC (:func:`cagekit.bind`, float64) and moved with the deformed cage.
 ``refine=True`` then runs the per-pair optimisation of :func:`cagekit.deform` on the
 predicted cage, starting from its predicted deformation.
 
@@ -26,15 +29,15 @@ import numpy as np
 import torch
 from numpy.typing import ArrayLike
 
-from cagekit.cage import check_cage, self_intersecting_faces
+from cagekit.cage import check_cage
 from cagekit.coords import bind
-from cagekit.coords.binding import warn_outside
-from cagekit.deformation import CageProblem, DeformOptions, DeformResult, solve
-from cagekit.errors import CagekitWarning, InputError
+from cagekit.deformation import CageProblem, DeformOptions, DeformResult, deform, solve
+from cagekit.errors import CageError, CagekitWarning, InputError
 from cagekit.geometry import as_shape
 from cagekit.geometry.frame import Frame
 from cagekit.geometry.sampling import sample_surface
 from cagekit.typed import Vertices
+from cagekit_learn.cage_repair import check_predicted_cage
 from cagekit_learn.networks import NeuralCages
 from cagekit_learn.train import load_model
 
@@ -166,7 +169,8 @@ def deform_with_model(model: NeuralCages, V_src: ArrayLike, F_src: ArrayLike | N
                       V_tgt: ArrayLike, F_tgt: ArrayLike | None = None, *,
                       points: int | None = None, seed: int = 0, refine: bool = False,
                       options: DeformOptions | None = None,
-                      progress: Callable[[int, int], object] | None = None) -> DeformResult:
+                      progress: Callable[[int, int], object] | None = None,
+                      fallback: bool = True) -> DeformResult:
     """Deform a source to take a target's shape with a trained model.
 
     Parameters
@@ -192,13 +196,26 @@ def deform_with_model(model: NeuralCages, V_src: ArrayLike, F_src: ArrayLike | N
         coordinates the model was trained with (``coords``, ``method``, ``faces`` and
         ``check`` do not apply).
     progress : callable, optional
-        When refining, as :func:`cagekit.deform` calls it.
+        When refining (or falling back), as :func:`cagekit.deform` calls it.
+    fallback : bool, default True
+        What to do with a predicted cage that cannot be used
+        (:func:`cagekit_learn.cage_repair.check_predicted_cage`: it intersects itself,
+        or leaves source points outside even when grown): True deforms by per-pair
+        optimisation with a fitted cage instead (:func:`cagekit.deform`, ``options``
+        with method ``"cage"``) and says so in one warning; False raises.
 
     Returns
     -------
     DeformResult
-        ``method`` is ``"learned"`` or ``"learned+refine"``; vertices in the target's
-        frame and units; the cages in the source's and target's frames.
+        ``method`` is ``"learned"`` or ``"learned+refine"`` (``"cage"`` after a fall
+        back); vertices in the target's frame and units; the cages in the source's and
+        target's frames: the cage used, which is the predicted one grown about the
+        source's centre when it left points outside.
+
+    Raises
+    ------
+    CageError
+        With ``fallback=False``, the predicted cage cannot be used (the message says why).
 
     Notes
     -----
@@ -217,15 +234,19 @@ def deform_with_model(model: NeuralCages, V_src: ArrayLike, F_src: ArrayLike | N
     Vs, Fs, Vt, Ft = _shapes(V_src, F_src, V_tgt, F_tgt)
     fs, ft, Vs_n, Vt_n, cage_n, deformed_n = _predicted(model, Vs, Fs, Vt, Ft, points, seed)
     cage_f = check_cage(cage_n, model.cage_f.cpu().numpy(), intersections=False)
-    crossing = int(self_intersecting_faces(cage_n, cage_f).sum())
-    if crossing:
-        warnings.warn(CagekitWarning(f"the model's cage for the source intersects itself "
-                                     f"({crossing} of {len(cage_f)} faces): the result may "
-                                     "fold there"), stacklevel=2)
+    checked = check_predicted_cage(Vs_n, cage_n, deformed_n, cage_f)
+    if not checked.valid:
+        message = f"the model's cage for the source cannot be used: {checked.problem}"
+        if not fallback:
+            raise CageError(message)
+        warnings.warn(CagekitWarning(f"{message}; deformed by per-pair optimisation with a "
+                                     "fitted cage (method 'cage') instead"), stacklevel=2)
+        return deform(Vs, Fs, Vt, Ft, options=dataclasses.replace(options, method="cage"),
+                      progress=progress)
+    cage_n, deformed_n = checked.cage_v, checked.deformed_v
     result = DeformResult(vertices=Vs, faces=Fs, method="learned", cage_f=cage_f,
                           source_frame=fs, target_frame=ft)
     if refine:  # the per-pair optimisation from the prediction, in the unit frames
-        warn_outside(Vs_n, cage_n, cage_f, shape="the source", cage="the model's cage")
         problem = CageProblem.create(
             Vs_n, Fs, Vt_n, Ft, cage_n, cage_f,
             dataclasses.replace(options, coords=_coords_of(model), seed=seed))

@@ -1,7 +1,7 @@
 """The wheel (DESIGN.md): the packages ``cagekit`` and ``cagekit_learn``, each with its
-``py.typed`` (PEP 561), and nothing else at the top (no ``apps``, a folder name any other
-project may use), built from a copy of the sources with this environment's setuptools (no
-network)."""
+``py.typed`` (PEP 561), the shipped models, and nothing else at the top (no ``apps``, a
+folder name any other project may use), built from a copy of the sources with this
+environment's setuptools (no network)."""
 
 import shutil
 import subprocess
@@ -33,3 +33,5 @@ def test_the_wheel_holds_cagekit_and_cagekit_learn_only(tmp_path):
     assert top == {"cagekit", "cagekit_learn"}
     assert "cagekit/transfer/character.py" in names  # the transfer is the core's
     assert {"cagekit/py.typed", "cagekit_learn/py.typed"} <= set(names)  # PEP 561
+    shipped = {n for n in names if n.startswith("cagekit_learn/models/")}
+    assert {"cagekit_learn/models/chairs.pt", "cagekit_learn/models/chairs.json"} <= shipped

@@ -42,8 +42,9 @@ def _pairs_option(ctx, param, value):
 @click.option("--method", type=click.Choice(["cage", "scale", "model"]), default="cage",
               show_default=True, help="Per-pair cage optimisation, box scaling, or a "
               "trained model (--model).")
-@click.option("--model", "model_path", type=click.Path(exists=True), default=None,
-              help="Run folder or checkpoint of cagekit train (with --method model).")
+@click.option("--model", "model_path", type=click.Path(), default=None,
+              help="Run folder or checkpoint of cagekit train, or a shipped model's name "
+                   "(chairs), with --method model.")
 @click.option("--refine", is_flag=True, help="With --model: optimise each predicted cage.")
 @click.option("--coords", type=click.Choice(list(DEFORM_COORDINATE_METHODS)), default="mvc",
               show_default=True,

@@ -28,8 +28,8 @@ from dataclasses import dataclass
 
 from cagekit.errors import InputError
 
-__all__ = ["FURNITURE_DIR", "CATALOGS", "FURNITURE_CATALOGS", "Model", "models",
-           "read_properties"]
+__all__ = ["FURNITURE_DIR", "CATALOGS", "FURNITURE_CATALOGS", "KIND_WORDS", "SEAT_KINDS",
+           "Model", "models", "read_properties", "furniture_kind", "held_out_split"]
 
 #: where Debian puts the archives
 FURNITURE_DIR = "/usr/share/sweethome3d/furniture"
@@ -41,6 +41,16 @@ CATALOGS = ("BlendSwap-CC-0", "BlendSwap-CC-BY", "KatorLegaz", "Reallusion", "Sc
 FURNITURE_CATALOGS = ("BlendSwap-CC-0", "BlendSwap-CC-BY", "KatorLegaz")
 
 _PROPERTIES = "PluginFurnitureCatalog.properties"
+
+#: name words of each furniture kind, first match wins (an "armchair" is not a "chair")
+KIND_WORDS = (("armchair", ("armchair",)), ("sofa", ("sofa", "couch")),
+              ("stool or bench", ("stool", "bench")), ("chair", ("chair",)),
+              ("table", ("table",)))
+#: words that put a name out of every kind ("pool table", "ceiling fan", "workbench")
+NOT_FURNITURE = ("fan", "tennis", "pool", "football", "bedside", "wheel", "workbench",
+                 "abdominal", "bat", "ottoman")
+#: the kinds that make the seats (the shipped model ``chairs``, the learned benchmark)
+SEAT_KINDS = ("chair", "armchair", "sofa", "stool or bench")
 
 
 @dataclass(frozen=True)
@@ -177,3 +187,66 @@ def models(catalogs: Iterable[str] = CATALOGS, cache: str = "out/sweethome3d",
                              creator=props.get(f"creator#{i}", ""),
                              license=props.get(f"license#{i}", licence)))
     return out
+
+
+def furniture_kind(name: str) -> str | None:
+    """The kind of a furniture model from its catalog name, or None.
+
+    Parameters
+    ----------
+    name : str
+        As the catalog names the model (:attr:`Model.name`).
+
+    Returns
+    -------
+    str or None
+        One of the kinds of :data:`KIND_WORDS`, or None for anything else (and for the
+        names :data:`NOT_FURNITURE` excludes).
+
+    Examples
+    --------
+    >>> furniture_kind("Antique armchair"), furniture_kind("Pool table")
+    ('armchair', None)
+    """
+    low = name.lower()
+    if any(word in low for word in NOT_FURNITURE):
+        return None
+    return next((kind for kind, words in KIND_WORDS if any(w in low for w in words)), None)
+
+
+def held_out_split(found: Iterable[Model], kinds: Iterable[str] = SEAT_KINDS,
+                   every: int = 4) -> tuple[list[tuple[str, Model]], list[tuple[str, Model]]]:
+    """Split models of some kinds into training and held-out (test) models, by name only.
+
+    Within each kind, in the order given (:func:`models`' catalog order), the models at
+    positions ``1, 1 + every, 1 + 2 every, ...`` are held out and the rest train, so the
+    split depends only on the installed catalogs, never on a random draw or on loading
+    a mesh.
+
+    Parameters
+    ----------
+    found : iterable of Model
+    kinds : iterable of str, default :data:`SEAT_KINDS`
+    every : int, default 4
+        One model in ``every`` is held out.
+
+    Returns
+    -------
+    train, held_out : list of (kind, Model)
+        Kind by kind, in the order of ``kinds``.
+
+    Examples
+    --------
+    >>> m = [Model(f"{i}.obj", "c", f"Chair {i}", "", "", "") for i in range(6)]
+    >>> train, test = held_out_split(m, every=4)
+    >>> [x.name for _, x in test], len(train)
+    (['Chair 1', 'Chair 5'], 4)
+    """
+    found = list(found)
+    train: list[tuple[str, Model]] = []
+    held_out: list[tuple[str, Model]] = []
+    for kind in kinds:
+        of_kind = [m for m in found if furniture_kind(m.name) == kind]
+        for i, model in enumerate(of_kind):
+            (held_out if i % every == 1 else train).append((kind, model))
+    return train, held_out

@@ -91,6 +91,18 @@ def test_the_package_has_its_820_models(catalog):
 
 
 @needs_package
+def test_the_seats_split_holds_out_one_in_four_of_each_kind_and_never_scopia(catalog):
+    furniture = [m for m in catalog if m.catalog in sweethome3d.FURNITURE_CATALOGS]
+    train, held_out = sweethome3d.held_out_split(furniture)
+    assert (len(train), len(held_out)) == (44, 15)
+    assert not {m.path for _, m in train} & {m.path for _, m in held_out}
+    for kind in sweethome3d.SEAT_KINDS:
+        of_kind = [m for m in furniture if sweethome3d.furniture_kind(m.name) == kind]
+        assert [m for k, m in held_out if k == kind] == of_kind[1::4]
+    assert {m.catalog for _, m in train + held_out} <= set(sweethome3d.FURNITURE_CATALOGS)
+
+
+@needs_package
 @pytest.mark.parametrize("stem", ["male-01-suit", "window-08", "fridge", "tv", "desk"])
 def test_real_files_with_line_elements_load_with_one_warning(catalog, stem):
     """These have two-vertex ``f`` lines (the audit's male-01-suit was refused for one)."""

@@ -18,6 +18,7 @@ from cagekit.deformation import DeformOptions  # noqa: E402
 from cagekit.geometry.frame import Frame  # noqa: E402
 from cagekit.geometry.sampling import sample_surface  # noqa: E402
 from cagekit.metrics import evaluate  # noqa: E402
+from cagekit_learn.cage_repair import check_predicted_cage  # noqa: E402
 from cagekit_learn.inference import deform_with_model, predict  # noqa: E402
 from cagekit_learn.train import load_model  # noqa: E402
 
@@ -71,6 +72,10 @@ def test_prediction_deforms_the_full_mesh_with_the_core_binding(run_dir, pair):
     Vt_n, ct, st = frame.to_unit(tgt[0]), frame.centre, frame.scale
     cage, deformed = predict(model, sample_surface(Vs_n, src[1], 256, seed=5),
                              sample_surface(Vt_n, tgt[1], 256, seed=6))
+    # ... checked (and grown if it left the source out) before use
+    checked = check_predicted_cage(Vs_n, cage, deformed, model.cage_f.numpy())
+    assert checked.valid
+    cage, deformed = checked.cage_v, checked.deformed_v
     expected = bind(Vs_n, cage, model.cage_f.numpy()).deform(deformed) * st + ct
     assert np.allclose(result.vertices, expected, atol=1e-9)
     assert np.allclose(result.cage_v, cage * ss + cs)
@@ -222,3 +227,61 @@ def test_a_model_trained_with_green_coordinates_deforms_with_them(tmp_path, pair
                                 points=128, refine=True,
                                 options=DeformOptions(coords="mvc", max_evaluations=5))
     assert refined.method == "learned+refine" and np.isfinite(refined.vertices).all()
+
+
+def _predicting(monkeypatch, change):
+    """Make deform_with_model's prediction pass through ``change(Vs_n, cage, deformed)``."""
+    from cagekit_learn import inference
+
+    real = inference._predicted
+
+    def predicted(*args, **kwargs):
+        fs, ft, Vs_n, Vt_n, cage_n, deformed_n = real(*args, **kwargs)
+        return (fs, ft, Vs_n, Vt_n, *change(Vs_n, cage_n, deformed_n))
+
+    monkeypatch.setattr(inference, "_predicted", predicted)
+
+
+def test_a_predicted_cage_that_leaves_the_source_out_is_grown_before_use(run_dir, pair,
+                                                                         monkeypatch):
+    from cagekit.cage import winding_numbers
+
+    model, _ = load_model(run_dir)
+    src, tgt = io.load_shape(pair[0]), io.load_shape(pair[1])
+    centre = {}
+
+    def shrink(Vs_n, cage, deformed):  # 0.7x about the source's centre: parts stick out
+        centre["c"] = 0.5 * (Vs_n.min(axis=0) + Vs_n.max(axis=0))
+        return centre["c"] + 0.7 * (cage - centre["c"]), deformed
+
+    _predicting(monkeypatch, shrink)
+    result = deform_with_model(model, *src, *tgt, points=256)
+    assert result.method == "learned"
+    cage_n = result.source_frame.to_unit(result.cage_v)
+    source_n = result.source_frame.to_unit(src[0])
+    assert (winding_numbers(source_n, cage_n, result.cage_f) >= 0.5 - 1e-9).all()
+
+
+def test_a_predicted_cage_that_folds_falls_back_to_a_fitted_cage_with_one_warning(
+        run_dir, pair, monkeypatch):
+    from cagekit.deformation import deform
+    from cagekit.errors import CageError, CagekitWarning
+
+    model, _ = load_model(run_dir)
+    src, tgt = io.load_shape(pair[0]), io.load_shape(pair[1])
+
+    def fold(Vs_n, cage, deformed):  # one cage vertex pushed through the far side
+        cage = cage.copy()
+        cage[0] = cage.mean(axis=0) - 2.0 * (cage[0] - cage.mean(axis=0))
+        return cage, deformed
+
+    _predicting(monkeypatch, fold)
+    options = DeformOptions(max_evaluations=5)
+    with pytest.warns(CagekitWarning, match="intersects itself.*per-pair optimisation") as w:
+        result = deform_with_model(model, *src, *tgt, points=256, options=options)
+    assert len([x for x in w if issubclass(x.category, CagekitWarning)]) == 1
+    assert result.method == "cage" and len(result.cage_f) != len(model.cage_f)
+    expected = deform(*src, *tgt, options=options)
+    np.testing.assert_allclose(result.vertices, expected.vertices, atol=1e-9)
+    with pytest.raises(CageError, match="cannot be used: it intersects itself"):
+        deform_with_model(model, *src, *tgt, points=256, fallback=False)

@@ -1,0 +1,89 @@
+"""Shipped models: loaded by name, recorded with their data, reproduced from their recipe
+(issue 32). The reproduction needs Debian's ``sweethome3d-furniture`` (``.ci/run``
+installs it); without it that test is skipped."""
+
+import json
+import os
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+
+from cagekit import io  # noqa: E402
+from cagekit.cli import main  # noqa: E402
+from cagekit.datasets import synthetic  # noqa: E402
+from cagekit.datasets.sweethome3d import FURNITURE_DIR  # noqa: E402
+from cagekit.errors import InputError  # noqa: E402
+from cagekit_learn import make_shipped, shipped  # noqa: E402
+from cagekit_learn.checkpoint import load_checkpoint  # noqa: E402
+from cagekit_learn.train import load_model  # noqa: E402
+
+INSTALLED = os.path.isfile(os.path.join(FURNITURE_DIR, "KatorLegaz.sh3f"))
+
+
+def test_chairs_ships_with_its_recipe_and_loads_by_name():
+    assert "chairs" in shipped.names()
+    model, payload = load_model("chairs")
+    assert "optimizer" not in payload and payload["step"] > 0
+    assert os.path.getsize(shipped.MODELS_DIR / "chairs.pt") < 5e6
+    recipe = shipped.recipe("chairs")
+    assert recipe["training"]["steps"] == payload["step"]
+    assert recipe["first_steps"]["steps"] == make_shipped.FINGERPRINT_STEPS
+    train, held_out = recipe["data"]["train"], recipe["data"]["held_out"]
+    assert len(train) >= 2 * len(held_out) > 0  # one seat in four of each kind held out
+    files = {(e["catalog"], e["file"]) for e in train}
+    assert len(files) == len(train) and not files & {(e["catalog"], e["file"]) for e in held_out}
+    assert all(e["license"] and e["catalog"] != "Scopia" for e in train + held_out)
+
+
+def test_a_path_wins_over_a_name_and_an_unknown_name_says_what_ships(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert shipped.shipped_checkpoint("chairs") == shipped.MODELS_DIR / "chairs.pt"
+    (tmp_path / "chairs").mkdir()
+    assert shipped.shipped_checkpoint("chairs") is None  # the user's own folder
+    with pytest.raises(InputError, match=r"nor a shipped model \(shipped: .*chairs"):
+        load_model("sofas")
+    with pytest.raises(InputError, match="no such checkpoint"):
+        load_model("runs/sofas")  # a path, not a name
+
+
+def test_deform_and_amplify_take_the_shipped_name(tmp_path):
+    for name, seed in (("a", 3), ("b", 4)):
+        io.save_mesh(tmp_path / f"{name}.obj", *synthetic.chair(seed=seed))
+    out = tmp_path / "out.obj"
+    code = main(["deform", str(tmp_path / "a.obj"), str(tmp_path / "b.obj"), "--model",
+                 "chairs", "-o", str(out)], standalone_mode=False)
+    assert code == 0
+    V, _ = io.load_mesh(out)
+    assert V.shape == synthetic.chair(seed=3)[0].shape and np.isfinite(V).all()
+    code = main(["deform", str(tmp_path / "a.obj"), str(tmp_path / "b.obj"), "--model",
+                 "sofas", "-o", str(tmp_path / "none.obj")], standalone_mode=False)
+    assert code == 2 and not (tmp_path / "none.obj").exists()
+    (tmp_path / "set").mkdir()
+    for name in ("a", "b"):
+        os.replace(tmp_path / f"{name}.obj", tmp_path / "set" / f"{name}.obj")
+    code = main(["amplify", str(tmp_path / "set"), "-o", str(tmp_path / "var"), "--method",
+                 "model", "--model", "chairs", "--variations", "1"], standalone_mode=False)
+    assert code == 0
+    (item,) = json.loads((tmp_path / "var" / "manifest.json").read_text())["items"]
+    assert item["method"] == "model" and item["status"] in ("ok", "rejected")
+
+
+@pytest.mark.skipif(not INSTALLED, reason="needs Debian's sweethome3d-furniture")
+def test_a_fresh_run_of_the_recipe_reproduces_the_first_steps(tmp_path):
+    recorded = shipped.recipe("chairs")
+    train, _ = make_shipped.training_shapes("chairs")
+    assert [m.name for _, m in train] == [e["name"] for e in recorded["data"]["train"]]
+    folder = make_shipped.training_folder(train, tmp_path / "train")
+    fresh = make_shipped.first_steps("chairs", folder, tmp_path / "run")
+    expected = recorded["first_steps"]
+    same_machine = all(fresh[k] == expected[k] for k in ("torch", "threads", "cpu_capability"))
+    if same_machine:  # bit for bit
+        assert fresh["weights_sha256"] == expected["weights_sha256"]
+        assert fresh["losses"] == expected["losses"]
+    else:  # another instruction set or thread count rounds differently
+        for key, value in expected["losses"].items():
+            assert fresh["losses"][key] == pytest.approx(value, rel=1e-4)
+    payload = load_checkpoint(tmp_path / "run")
+    assert payload["step"] == make_shipped.FINGERPRINT_STEPS
