@@ -73,7 +73,7 @@ def test_deform_and_amplify_take_the_shipped_name(tmp_path):
 @pytest.mark.skipif(not INSTALLED, reason="needs Debian's sweethome3d-furniture")
 def test_a_fresh_run_of_the_recipe_reproduces_the_first_steps(tmp_path):
     recorded = shipped.recipe("chairs")
-    train, _ = make_shipped.training_shapes("chairs")
+    train, _ = make_shipped.training_shapes("chairs", cache=str(tmp_path / "sh3d"))
     assert [m.name for _, m in train] == [e["name"] for e in recorded["data"]["train"]]
     folder = make_shipped.training_folder(train, tmp_path / "train")
     fresh = make_shipped.first_steps("chairs", folder, tmp_path / "run")
