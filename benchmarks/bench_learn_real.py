@@ -51,11 +51,11 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import cagekit  # noqa: E402
-from cagekit.cage import self_intersecting_faces, winding_numbers  # noqa: E402
 from cagekit.coords import bind  # noqa: E402
 from cagekit.datasets.sweethome3d import SEAT_KINDS  # noqa: E402
 from cagekit.errors import OutsideCageWarning  # noqa: E402
 from cagekit.io import load_mesh  # noqa: E402
+from cagekit_learn.cage_repair import check_predicted_cage  # noqa: E402
 from cagekit_learn.inference import deform_with_model, predict_cages  # noqa: E402
 from cagekit_learn.make_shipped import config_of, training_folder, training_shapes  # noqa: E402
 from cagekit_learn.train import load_model, train  # noqa: E402
@@ -113,12 +113,11 @@ def raw_prediction(model, points, source, target) -> SimpleNamespace:
 
 
 def cage_validity(model, points, source, target) -> dict:
-    """The predicted source cage's self-intersecting faces and share of the source outside."""
-    cage_v, _ = predict_cages(model, *source, *target, points=points)
-    cage_f = model.cage_f.cpu().numpy()
-    outside = float(np.mean(winding_numbers(source[0], cage_v, cage_f) < 0.5))
-    return {"crossing_faces": int(self_intersecting_faces(cage_v, cage_f).sum()),
-            "outside_share": outside}
+    """The predicted source cage's self-intersecting faces and share of the source outside
+    (before any growth), as :func:`cagekit_learn.cage_repair.check_predicted_cage` judges it."""
+    cage_v, deformed_v = predict_cages(model, *source, *target, points=points)
+    checked = check_predicted_cage(source[0], cage_v, deformed_v, model.cage_f.cpu().numpy())
+    return {"crossing_faces": checked.crossing_faces, "outside_share": checked.outside_share}
 
 
 def _fell_back(figures) -> bool:

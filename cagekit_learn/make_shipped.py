@@ -29,7 +29,6 @@ import json
 import os
 import shutil
 import sys
-import time
 from pathlib import Path
 
 import torch
@@ -127,7 +126,8 @@ def first_steps(name: str, data: str | os.PathLike, run_dir: str | os.PathLike) 
 
 
 def make_model(name: str, run_dir: str | os.PathLike, steps: int | None = None,
-         cache: str = "out/sweethome3d", out_dir: str | os.PathLike = MODELS_DIR) -> Path:
+               cache: str = "out/sweethome3d",
+               out_dir: str | os.PathLike = MODELS_DIR) -> Path:
     """Train the shipped model ``name`` and write ``out_dir/NAME.pt`` and ``NAME.json``.
 
     Parameters
@@ -156,9 +156,7 @@ def make_model(name: str, run_dir: str | os.PathLike, steps: int | None = None,
     for old in ("first_steps", "run"):  # both runs start afresh
         shutil.rmtree(run_dir / old, ignore_errors=True)
     fingerprint = first_steps(name, data, run_dir / "first_steps")
-    start = time.perf_counter()
     result = train(config_of(name, data, run_dir / "run", steps), progress=True)
-    seconds = time.perf_counter() - start
     payload = load_checkpoint(run_dir / "run")
     exported = {k: payload[k] for k in ("model", "model_config", "config", "step", "epoch",
                                         "skipped")}
@@ -175,7 +173,7 @@ def make_model(name: str, run_dir: str | os.PathLike, steps: int | None = None,
                  "train": [_entry(k, m) for k, m in train_shapes],
                  "held_out": [_entry(k, m) for k, m in held_out]},
         "training": {"steps": result.step, "skipped": result.skipped,
-                     "seconds": round(seconds, 1),
+                     "seconds": round(result.seconds, 1),
                      "pairs_per_second": round(result.pairs_per_second, 2),
                      "config": payload["config"], **machine(),
                      "date": datetime.date.today().isoformat()},

@@ -242,11 +242,11 @@ def held_out_split(found: Iterable[Model], kinds: Iterable[str] = SEAT_KINDS,
     >>> [x.name for _, x in test], len(train)
     (['Chair 1', 'Chair 5'], 4)
     """
-    found = list(found)
+    kinds_of = [(furniture_kind(m.name), m) for m in found]  # named once, not per kind
     train: list[tuple[str, Model]] = []
     held_out: list[tuple[str, Model]] = []
     for kind in kinds:
-        of_kind = [m for m in found if furniture_kind(m.name) == kind]
+        of_kind = [m for k, m in kinds_of if k == kind]
         for i, model in enumerate(of_kind):
             (held_out if i % every == 1 else train).append((kind, model))
     return train, held_out
