@@ -5,6 +5,7 @@ import pytest
 import trimesh
 
 from cagekit.errors import InputError
+from cagekit.transfer import loose_pieces as lp
 from cagekit.transfer.loose_pieces import find_loose_pieces
 
 
@@ -174,3 +175,93 @@ def test_the_median_ignores_a_touched_vertex_that_flew_off():
     moved[loose.touched[0][0]] += [0.0, 0.0, 9.0]  # one touched vertex carried far off
     np.testing.assert_allclose(loose.reattach(V, moved)[piece] - V[piece],
                                [[0.0, 0.0, 1.0]] * 5, atol=1e-12)
+
+
+def _forearm_and_hand():
+    """A fine box (1538 vertices, 1/16 a square) and a hand of 27 vertices sticking out of
+    its side at x = 0.5: a 3 x 3 ring 0.001 off the box's grid, fingers to x = 1.0."""
+    box = trimesh.creation.box().subdivide().subdivide().subdivide().subdivide()
+    grid = [(y, z) for y in (-0.125, 0.0, 0.125) for z in (-0.125, 0.0, 0.125)]
+    hand = np.array([[x, y, z] for x in (0.501, 0.75, 1.0) for y, z in grid])
+    strip = np.array([[k, k + 1, k + 2] for k in range(len(hand) - 2)])
+    return _mesh((np.asarray(box.vertices), np.asarray(box.faces)), (hand, strip))
+
+
+def _about_z(degrees):
+    a = np.radians(degrees)
+    return np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0, 0, 1.0]])
+
+
+def test_a_bent_piece_is_restored_rigid_and_turned_with_the_part_it_touched():
+    V, F, (box, hand) = _forearm_and_hand()
+    loose = find_loose_pieces(V, F, np.isin(np.arange(len(V)), hand))
+    assert [p.tolist() for p in loose.pieces] == [hand.tolist()]
+    patch = loose.patches[0]
+    assert len(patch) >= lp.PATCH_SIZE and np.isin(patch, box).all()
+    # the forearm turns 40 degrees and moves; the cage bends the hand: the ring goes with
+    # the forearm, the fingers stay behind (folded over)
+    turn, shift = _about_z(40), np.array([0.3, 2.0, -0.1])
+    moved = V.copy()
+    moved[box] = V[box] @ turn.T + shift
+    ring = hand[:9]
+    moved[ring] = V[ring] @ turn.T + shift
+    moved[hand[9:]] = V[hand[9:]] + [0.0, 0.5, 0.0]
+    out = loose.reattach(V, moved)
+    np.testing.assert_array_equal(out[box], moved[box])
+    # the hand is its rest shape, turned and moved with the forearm exactly
+    np.testing.assert_allclose(out[hand], V[hand] @ turn.T + shift, atol=1e-9)
+    # the translation alone (today's rule for a piece the cage did not bend) could not
+    # have: the fingers stay folded
+    translated = moved[hand] + np.median(moved[loose.touched[0]] + V[loose.touching[0]]
+                                         - V[loose.touched[0]] - moved[loose.touching[0]],
+                                         axis=0)
+    assert np.abs(translated - (V[hand] @ turn.T + shift)).max() > 0.2
+
+
+def test_a_piece_the_cage_turned_rigidly_keeps_its_turn():
+    # the cage turns the hand rigidly, 10 degrees more than the forearm: not bent, so it is
+    # translated back to its contacts and keeps the cage's turn (the suit's shoes)
+    V, F, (box, hand) = _forearm_and_hand()
+    loose = find_loose_pieces(V, F, np.isin(np.arange(len(V)), hand))
+    moved = V.copy()
+    moved[box] = V[box] @ _about_z(40).T
+    moved[hand] = V[hand] @ _about_z(50).T
+    shift = loose.reattach(V, moved)[hand] - moved[hand]
+    np.testing.assert_allclose(shift, shift[[0]].repeat(len(hand), 0), atol=1e-12)
+    assert np.linalg.norm(shift[0]) > 1e-3
+
+
+def test_a_piece_bent_like_the_surface_around_it_keeps_the_cage_s_shape():
+    # the cage stretches everything across the arm (twice, in y and z): the patch around
+    # the contacts deviates from rigid as much as the hand, which is only moved back (the
+    # hem at the ankle, bent with the leg)
+    V, F, (box, hand) = _forearm_and_hand()
+    loose = find_loose_pieces(V, F, np.isin(np.arange(len(V)), hand))
+    moved = V * [1.0, 2.0, 2.0]
+    moved[hand] += [0.0, 0.0, 0.3]
+    shift = loose.reattach(V, moved)[hand] - moved[hand]
+    np.testing.assert_allclose(shift, shift[[0]].repeat(len(hand), 0), atol=1e-12)
+    np.testing.assert_allclose(shift[0], [0.0, 0.0, -0.3], atol=1e-9)
+
+
+def test_a_bent_piece_turns_with_its_own_part_not_the_hip():
+    # the forearm's patch (r_forearm) turns; the same box's other half is labelled hip
+    # (pelvis, not next to the hand along the skeleton) and turns the other way in the
+    # motion: the hand's patch holds none of it, and the hand turns with the forearm
+    V, F, (box, hand) = _forearm_and_hand()
+    parts = np.full(len(V), "r_forearm", dtype="<U16")
+    parts[hand] = "r_hand"
+    hip = box[V[box, 2] < -0.03]  # the hand touches it, and it lies within the patch reach
+    parts[hip] = "pelvis"
+    loose = find_loose_pieces(V, F, np.isin(np.arange(len(V)), hand), parts)
+    assert len(loose.patches[0]) >= lp.PATCH_SIZE
+    assert not np.isin(loose.patches[0], hip).any()
+    everything = find_loose_pieces(V, F, np.isin(np.arange(len(V)), hand))
+    assert np.isin(everything.patches[0], hip).any()
+    turn, shift = _about_z(40), np.array([0.0, 1.0, 0.0])
+    moved = V @ turn.T + shift
+    moved[hip] = V[hip] @ _about_z(-40).T
+    moved[hand[9:]] = V[hand[9:]]  # the fingers left behind: bent
+    np.testing.assert_allclose(loose.reattach(V, moved)[hand], V[hand] @ turn.T + shift,
+                               atol=1e-9)
+    assert np.abs(everything.reattach(V, moved)[hand] - (V[hand] @ turn.T + shift)).max() > 0.1
