@@ -50,7 +50,7 @@ RECIPES = {
                        "sweethome3d-furniture, its three furniture catalogs",
         "kinds": list(SEAT_KINDS),
         "every": 4,
-        "steps": 1500,
+        "steps": 3000,
         "seed": 0,
     },
 }

@@ -3,7 +3,10 @@
 One step (:meth:`Trainer.step`): a batch of source-target pairs (:mod:`cagekit_learn.data`),
 the model predicts a source cage and its deformation (:mod:`cagekit_learn.networks`), the
 source points are bound to the predicted cage with the differentiable MVC and moved, and
-the loss is ``L_align + ALPHA_MVC * L_MVC + alpha_shape * (L_p2f + L_normal) [+ L_symm]``
+the loss is ``L_align + ALPHA_MVC * L_MVC + alpha_enclosure * L_enclosure + alpha_shape * (L_p2f +
+L_normal) [+ L_symm]`` (``L_enclosure``, ours: :func:`cagekit_learn.enclosure.enclosure_loss`,
+every source point at least :data:`~cagekit_learn.enclosure.ENCLOSURE_MARGIN` inside its
+predicted cage)
 (the paper's weights, :mod:`cagekit.deformation.terms`; ``L_align`` Chamfer, or the L2 distance of
 corresponding points with ``align="l2"``). Adam at ``lr``, N_c at :data:`NC_LR_FACTOR` of it.
 Everything random is a function of ``(seed, epoch, step)`` and checkpoints hold the model,
@@ -64,6 +67,7 @@ from cagekit_learn.data import (
     make_batch,
     shard,
 )
+from cagekit_learn.enclosure import enclosure_loss
 from cagekit_learn.green import green_coordinates, green_deform
 from cagekit_learn.networks import ModelConfig, NeuralCages
 
@@ -73,7 +77,7 @@ __all__ = ["TrainConfig", "TrainResult", "Trainer", "train", "training_loss", "l
            "FROM_THE_CALLER"]
 
 LOG_NAME = "log.csv"
-TERMS = ("align", "mvc", "p2f", "normal", "symmetry")
+TERMS = ("align", "mvc", "enclosure", "p2f", "normal", "symmetry")
 #: N_c's learning rate relative to ``lr`` (the paper's ratio)
 NC_LR_FACTOR = 0.1
 #: the largest learning rate accepted: Adam moves each weight by about ``lr`` a step, so
@@ -86,6 +90,12 @@ FROM_THE_CALLER = ("data", "epochs", "max_steps", "max_minutes", "device")
 #: values is refused on resume rather than continued differently)
 _RETIRED_SETTINGS = {"alpha_mvc": ALPHA_MVC, "alpha_symmetry": 1.0,
                      "nc_lr_factor": NC_LR_FACTOR}
+
+
+ALPHA_ENCLOSURE = 10.0
+"""Default weight of the enclosure term: large enough that the source stays inside the
+predicted cage (with ``L_MVC`` alone N_c flattened it onto the seat of real chairs); a
+cage that encloses the source with its margin costs nothing."""
 
 
 @dataclass
@@ -111,6 +121,11 @@ class TrainConfig:
     alpha_shape : float
         Weight of the shape terms (the paper's 0.1; 0 turns them off). ``L_MVC`` has the
         paper's weight :data:`cagekit.deformation.terms.ALPHA_MVC`, the symmetry term weight 1.
+    alpha_enclosure : float
+        Weight of the enclosure term (:func:`cagekit_learn.enclosure.enclosure_loss`) on the
+        predicted source cage; 0 turns it off, as in runs from before it existed (a
+        checkpoint without the setting resumes with 0). It is not computed for a cage that
+        is not predicted (a fixed source cage, ``nc="identity"``).
     symmetry : {"x", "y", "z"} or None
     align : {"chamfer", "l2"}
     augment : bool
@@ -138,6 +153,7 @@ class TrainConfig:
     device: str | None = "auto"
     checkpoint_every: int = 200
     alpha_shape: float = ALPHA_SHAPE
+    alpha_enclosure: float = ALPHA_ENCLOSURE
     symmetry: str | None = None
     align: str = "chamfer"
     augment: bool = True
@@ -151,6 +167,7 @@ class TrainConfig:
 
     @classmethod
     def from_dict(cls, values: dict) -> TrainConfig:
+        values = {"alpha_enclosure": 0.0, **values}  # stored before the term existed: off
         return cls(**{k: v for k, v in values.items() if k in cls.__dataclass_fields__})
 
 
@@ -290,6 +307,7 @@ def _with_fixed_source(config: TrainConfig, collection: ShapeCollection) -> Trai
 # --------------------------------------------------------------------------------- loss
 
 
+
 def _unwrap(model):
     return model.module if hasattr(model, "module") else model
 
@@ -342,6 +360,10 @@ def training_loss(model: torch.nn.Module, source: torch.Tensor, target: torch.Te
     if not green:  # the paper's L_MVC (negative MVC weights); Green's psi have no sign
         terms["mvc"] = losses.mvc_loss(W).mean()
         total = total + ALPHA_MVC * terms["mvc"]
+    if config.alpha_enclosure and out["source_cage"].requires_grad:
+        terms["enclosure"] = enclosure_loss(source, out["source_cage"].to(source.dtype),
+                                            cage_f).mean()
+        total = total + config.alpha_enclosure * terms["enclosure"]
     if config.alpha_shape:
         if cached is None:
             with torch.no_grad():

@@ -75,14 +75,54 @@ def test_training_loss_terms_and_gradients_reach_every_network(tmp_path, vases):
     batch = make_batch(vases, np.array([[0, 1], [2, 3]]), epoch=0, step=0)
     config = _config(tmp_path, symmetry="x")
     total, terms = training_loss(net, batch["source"], batch["target"], config)
-    assert set(terms) == {"align", "mvc", "p2f", "normal", "symmetry"}
-    expected = (terms["align"] + terms["mvc"] + 0.1 * (terms["p2f"] + terms["normal"])
-                + terms["symmetry"])
+    assert set(terms) == {"align", "mvc", "enclosure", "p2f", "normal", "symmetry"}
+    expected = (terms["align"] + terms["mvc"] + 10 * terms["enclosure"]
+                + 0.1 * (terms["p2f"] + terms["normal"]) + terms["symmetry"])
     assert float(total.detach()) == pytest.approx(expected, rel=1e-5)
     total.backward()
     for name, p in net.named_parameters():
         assert p.grad is not None and torch.isfinite(p.grad).all(), name
     assert net.nc_decoder.layers[0].weight.grad.abs().sum() > 0  # L_MVC and align reach N_c
+
+
+def test_the_enclosure_term_pulls_a_small_cage_around_the_source(tmp_path, vases):
+    from cagekit_learn.data import make_batch
+    from cagekit_learn.enclosure import enclosure_loss, winding_numbers
+    from cagekit_learn.networks import ModelConfig, NeuralCages
+
+    torch.manual_seed(0)
+    net = NeuralCages(ModelConfig(**{**TINY_MODEL, "template_radius": 0.6}))
+    batch = make_batch(vases, np.array([[0, 1], [2, 3]]), epoch=0, step=0)
+    source, target = batch["source"], batch["target"]
+
+    def inside():
+        with torch.no_grad():
+            cage = net(source, target)["source_cage"]
+            return float((winding_numbers(source, cage, net.cage_f) > 0.5).float().mean())
+
+    _, off = training_loss(net, source, target, _config(tmp_path, alpha_enclosure=0))
+    _, on = training_loss(net, source, target, _config(tmp_path))
+    before = inside()
+    assert "enclosure" not in off and on["enclosure"] > 0 and before < 0.9
+    optimiser = torch.optim.Adam(net.nc_decoder.parameters(), lr=1e-2)
+    for _ in range(30):  # the enclosure term alone, on N_c alone
+        optimiser.zero_grad()
+        cage = net(source, target)["source_cage"]
+        enclosure_loss(source, cage, net.cage_f).mean().backward()
+        optimiser.step()
+    assert inside() > before + 0.05
+    assert training_loss(net, source, target, _config(tmp_path))[1]["enclosure"] < on["enclosure"]
+
+
+def test_the_enclosure_weight_defaults_the_same_everywhere_and_old_runs_resume_without_it():
+    from cagekit.cli.train import train as command
+    from cagekit_learn.train import ALPHA_ENCLOSURE
+
+    option = next(p for p in command.params if p.name == "enclosure_weight")
+    assert option.default == ALPHA_ENCLOSURE == TrainConfig(data="d", run_dir="r").alpha_enclosure
+    stored = TrainConfig(data="d", run_dir="r").to_dict()
+    del stored["alpha_enclosure"]  # a checkpoint written before the term
+    assert TrainConfig.from_dict(stored).alpha_enclosure == 0.0
 
 
 def test_nan_steps_are_skipped_and_counted(tmp_path, vases, monkeypatch):
