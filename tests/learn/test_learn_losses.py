@@ -41,6 +41,13 @@ def assert_value(value_t, value_np):
     assert value_t == pytest.approx(value_np, rel=VALUE_RTOL, abs=1e-300)
 
 
+def assert_normal_term(value_t, value_np):
+    """The normal term is a mean of 1 - |cos| in [0, 1]: for small motions it is a difference
+    of nearly equal numbers, so its rounding is absolute (a few ulp of 1), not relative."""
+    assert np.isfinite(value_t)
+    assert value_t == pytest.approx(value_np, rel=VALUE_RTOL, abs=1e-14)
+
+
 def assert_grad(grad_t, grad_np):
     grad_t = grad_t.detach().numpy()
     assert grad_t.shape == grad_np.shape
@@ -317,7 +324,7 @@ def test_shape_losses_equal_numpy(case):
             assert value > 0
             assert_value(values[term][b].item(), value)
             assert_value(values["p2f"][b].item(), np_values["p2f"])
-            assert_value(values["normal"][b].item(), np_values["normal"])
+            assert_normal_term(values["normal"][b].item(), np_values["normal"])
             assert_grad(Xt.grad[b], grad)
 
 
@@ -333,7 +340,7 @@ def test_shape_losses_with_numpy_reference_tensors():
     for b in range(2):
         np_values, grad = npl.shape_losses(X[b], refs[b], p2f_weight=0.7, normal_weight=2.5)
         assert_value(values["p2f"][b].item(), np_values["p2f"])
-        assert_value(values["normal"][b].item(), np_values["normal"])
+        assert_normal_term(values["normal"][b].item(), np_values["normal"])
         assert_grad(Xt.grad[b], grad)
 
 
@@ -355,7 +362,7 @@ def test_shape_losses_property_equal_numpy(seed, spread, k):
         np_values, grad = npl.shape_losses(X[b], np_ref)
         assert 0.0 <= values["normal"][b].item() <= 1.0
         assert_value(values["p2f"][b].item(), np_values["p2f"])
-        assert_value(values["normal"][b].item(), np_values["normal"])
+        assert_normal_term(values["normal"][b].item(), np_values["normal"])
         # random clouds can have nearly degenerate neighbourhoods, where rounding is
         # amplified by 1 / (eigenvalue gap): compare where the gradient is well posed
         gap = np.diff(np.linalg.eigvalsh(_covariances(X[b], index[b].numpy())), axis=1)[:, 0]
