@@ -1,9 +1,10 @@
 """cagekit: detail-preserving 3D shape deformation with cages.
 
-The core package: mean value coordinates (:func:`bind`), cage validation, automatic cages
-(:func:`fit_cage`), per-pair cage deformation (:func:`deform`), frames, sampling, geometry
-(cotangent Laplacian, PCA normals), the paper's metrics, mesh and landmark I/O. It never
-imports torch. docs/architecture.md maps the modules.
+The core package: mean value and Green coordinates (:func:`bind`: a :class:`CageBinding` or
+a :class:`GreenBinding`), cage validation, automatic cages (:func:`fit_cage`), per-pair cage
+deformation (:func:`deform`), frames, sampling, geometry (cotangent Laplacian, PCA normals),
+the paper's metrics, mesh and landmark I/O. It never imports torch. docs/architecture.md
+maps the modules.
 
 The names below are loaded on first use (PEP 562), so that ``import cagekit`` and the
 command line start in a fraction of a second; ``cagekit.bind`` and ``from cagekit import

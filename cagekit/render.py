@@ -27,7 +27,8 @@ from cagekit.cage import unique_edges
 from cagekit.geometry import as_shape
 from cagekit.io.files import atomic_output
 
-__all__ = ["MAX_FACES", "MAX_POINTS", "render_meshes", "render_grid"]
+__all__ = ["MAX_FACES", "MAX_POINTS", "render_meshes", "render_grid",
+           "shortest_unique_names"]
 
 #: At most this many faces of one mesh are drawn; larger meshes are subsampled
 #: (deterministically) so that a picture takes seconds, not minutes.
@@ -43,6 +44,37 @@ _AMBIENT = 0.22
 
 #: a shape as the renderers take it: ``(V, F)``, ``F`` None or empty for a point cloud
 _ShapeLike: TypeAlias = tuple[ArrayLike, ArrayLike | None]
+
+
+def shortest_unique_names(paths: Sequence[str | os.PathLike]) -> list[str]:
+    """The shortest trailing part of each path that no other path ends with (panel titles).
+
+    A file name alone where it is unique, else as many of its folders as tell it apart
+    (``/``-separated); a file given twice (the same normalised path) gets one name.
+
+    Parameters
+    ----------
+    paths : sequence of str or os.PathLike
+
+    Returns
+    -------
+    list of str
+        One name per path, in order.
+
+    Examples
+    --------
+    >>> shortest_unique_names(["out/girl/pose_003.obj", "out/suit/pose_003.obj", "rest.obj"])
+    ['girl/pose_003.obj', 'suit/pose_003.obj', 'rest.obj']
+    """
+    parts = [os.path.normpath(os.fspath(p)).replace(os.sep, "/").split("/") for p in paths]
+    names = []
+    for i, own in enumerate(parts):
+        others = [p for j, p in enumerate(parts) if j != i and p != own]
+        k = 1
+        while k < len(own) and any(p[-k:] == own[-k:] for p in others):
+            k += 1
+        names.append("/".join(own[-k:]))
+    return names
 
 
 def _to_display(V: np.ndarray, up: str) -> np.ndarray:

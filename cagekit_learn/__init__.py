@@ -2,6 +2,7 @@
 
 One concept a module: :mod:`~cagekit_learn.coords` (differentiable, batched mean value
 coordinates, ``bind``/``deform`` as in the core, matching it in float64),
+:mod:`~cagekit_learn.green` (differentiable Green coordinates: ``bind(..., method="green")``),
 :mod:`~cagekit_learn.losses` (the same terms as :mod:`cagekit.deformation.terms`),
 :mod:`~cagekit_learn.networks` (the PointNet encoder, N_c and N_d),
 :mod:`~cagekit_learn.data` (folders of meshes, pairs, augmentation),
@@ -25,17 +26,22 @@ Examples
 ((1, 8), True)
 """
 
-__all__ = ["bind", "deform", "CageBinding", "mean_value_coordinates", "load_model"]
+from importlib import import_module as _import_module
+
+__all__ = ["bind", "deform", "CageBinding", "GreenBinding", "mean_value_coordinates",
+           "load_model"]
+
+#: where each lazy name lives (the others: :mod:`cagekit_learn.coords`)
+_HOMES = {"load_model": "cagekit_learn.train", "GreenBinding": "cagekit_learn.green"}
 
 
 def __getattr__(name):
     # torch is imported on first use, so that ``cagekit_learn.data`` stays light
-    if name == "load_model":
-        from cagekit_learn.train import load_model
-
-        return load_model
     if name in __all__:
-        from cagekit_learn import coords
-
-        return getattr(coords, name)
+        return getattr(_import_module(_HOMES.get(name, "cagekit_learn.coords")), name)
     raise AttributeError(f"module 'cagekit_learn' has no attribute {name!r}")
+
+
+def __dir__():
+    # the lazy names are listed although not loaded yet (``dir``, tab completion)
+    return sorted(set(globals()) | set(__all__))

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Literal, overload
 
 import numpy as np
 import torch
@@ -32,11 +33,12 @@ from torch.utils.checkpoint import checkpoint
 from cagekit.cage import cage_topology, check_cage
 from cagekit.coords.mvc import FAR_BLEND, closest_point_weights
 from cagekit.errors import InputError
+from cagekit_learn.green import GreenBinding, green_coordinates
 
 __all__ = ["mean_value_coordinates", "CageBinding", "bind", "deform", "DEFAULT_SNAP",
            "METHODS"]
 
-METHODS = ("mvc",)
+METHODS = ("mvc", "green")
 
 #: Default switch-over distance, relative to the cage's bounding-box diagonal, per dtype.
 DEFAULT_SNAP = {torch.float64: 1e-13, torch.float32: 1e-6}
@@ -544,7 +546,8 @@ class CageBinding:
     cage_f : (m, 3) int64 torch.Tensor
         Its faces, oriented outward.
     method : str
-        The coordinates used (``"mvc"``).
+        ``"mvc"``: what :func:`bind` returns for it (Green coordinates give a
+        :class:`~cagekit_learn.green.GreenBinding`).
     """
 
     def __init__(self, weights: torch.Tensor, cage_v: torch.Tensor, cage_f: torch.Tensor,
@@ -585,26 +588,47 @@ class CageBinding:
         return deform(self.weights, new_cage_v)
 
 
+@overload
+def bind(points: torch.Tensor | ArrayLike, cage_v: torch.Tensor | ArrayLike,
+         cage_f: torch.Tensor | ArrayLike, method: Literal["mvc"] = "mvc",
+         chunk_size: int = 2048) -> CageBinding: ...
+@overload
+def bind(points: torch.Tensor | ArrayLike, cage_v: torch.Tensor | ArrayLike,
+         cage_f: torch.Tensor | ArrayLike, method: Literal["green"],
+         chunk_size: int = 2048) -> GreenBinding: ...
+@overload
 def bind(points: torch.Tensor | ArrayLike, cage_v: torch.Tensor | ArrayLike,
          cage_f: torch.Tensor | ArrayLike, method: str = "mvc",
-         chunk_size: int = 2048) -> CageBinding:
+         chunk_size: int = 2048) -> CageBinding | GreenBinding: ...
+
+
+def bind(points: torch.Tensor | ArrayLike, cage_v: torch.Tensor | ArrayLike,
+         cage_f: torch.Tensor | ArrayLike, method: str = "mvc",
+         chunk_size: int = 2048) -> CageBinding | GreenBinding:
     """Compute the coordinates of points with respect to a cage (or a batch of cages).
 
     Parameters
     ----------
     points : (B, n, 3) or (n, 3) torch.Tensor, float32 or float64
+        ``(n, 3)`` only for ``"green"``. Arrays are converted to float64 tensors.
     cage_v : (B, k, 3) or (k, 3) torch.Tensor, same dtype
+        ``(k, 3)`` only for ``"green"``.
     cage_f : (m, 3) array_like or torch.Tensor of int
         Closed, 2-manifold, consistently oriented faces (see
-        :func:`mean_value_coordinates`).
-    method : {"mvc"}, default "mvc"
-        Mean value coordinates.
+        :func:`mean_value_coordinates`); an inward cage is flipped.
+    method : {"mvc", "green"}, default "mvc"
+        Mean value coordinates, or Green coordinates (:mod:`cagekit_learn.green`, the
+        coordinates the learned mode trains with under ``--coords green``).
     chunk_size : int, default 2048
         Points processed at a time.
 
     Returns
     -------
-    CageBinding
+    CageBinding or GreenBinding
+        ``"mvc"``: a :class:`CageBinding` (``weights``, batched like the inputs);
+        ``"green"``: a :class:`~cagekit_learn.green.GreenBinding` (``phi``, ``psi``),
+        equal to :func:`cagekit.bind`'s in float64. Type checkers see which from a
+        literal ``method``.
 
     Examples
     --------
@@ -613,10 +637,31 @@ def bind(points: torch.Tensor | ArrayLike, cage_v: torch.Tensor | ArrayLike,
     >>> b = bind(torch.zeros(2, 5, 3, dtype=torch.float64), torch.tensor(v), f)
     >>> tuple(b.weights.shape), b.n_points
     ((2, 5, 8), 5)
+    >>> g = bind(torch.zeros(5, 3, dtype=torch.float64), torch.tensor(v), f, method="green")
+    >>> type(g).__name__, tuple(g.phi.shape), tuple(g.psi.shape)
+    ('GreenBinding', (5, 8), (5, 12))
     """
     if method not in METHODS:
         raise InputError(f"unknown coordinates {method!r}; available: {', '.join(METHODS)}")
+    if method == "green":
+        return _bind_green(points, cage_v, cage_f, chunk_size)
     weights, faces = _weights_and_faces(points, cage_v, cage_f, None, chunk_size)
     cage = cage_v if isinstance(cage_v, torch.Tensor) else torch.as_tensor(
         np.asarray(cage_v, dtype=np.float64))
     return CageBinding(weights, cage, torch.as_tensor(faces, device=weights.device), method)
+
+
+def _bind_green(points, cage_v, cage_f, chunk_size) -> GreenBinding:
+    """:func:`bind` with Green coordinates: one unbatched cage, faces checked (outward)."""
+    P = _as_float_tensor(points, "points")
+    V = _as_float_tensor(cage_v, "cage_v")
+    if P.ndim != 2 or V.ndim != 2:
+        raise InputError("Green coordinates bind one cage at a time: points (n, 3) and "
+                         f"cage_v (k, 3), got {tuple(P.shape)} and {tuple(V.shape)}")
+    if not (bool(torch.isfinite(P.detach()).all()) and bool(torch.isfinite(V.detach()).all())):
+        raise InputError("points or cage_v contain NaN or inf")
+    f_np = cage_f.detach().cpu().numpy() if isinstance(cage_f, torch.Tensor) else cage_f
+    faces = check_cage(V.detach().to("cpu", torch.float64).numpy(), np.asarray(f_np),
+                       intersections=False)
+    phi, psi = green_coordinates(P, V, faces, chunk_size=chunk_size)
+    return GreenBinding(phi, psi, V, torch.as_tensor(faces, device=V.device))

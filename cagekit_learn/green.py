@@ -25,7 +25,7 @@ from cagekit.cage import cage_topology
 from cagekit.coords import green as core
 from cagekit.errors import InputError
 
-__all__ = ["green_coordinates", "green_deform", "stretch_factors"]
+__all__ = ["GreenBinding", "green_coordinates", "green_deform", "stretch_factors"]
 
 
 def _safe_norm(v: torch.Tensor) -> torch.Tensor:
@@ -219,6 +219,77 @@ def green_deform(phi: torch.Tensor, psi: torch.Tensor, rest_v: torch.Tensor,
     normals = cross / cross.norm(dim=-1, keepdim=True)
     s = stretch_factors(rest_v, new_v, faces)
     return phi @ new_v + psi @ (normals * s[:, None])
+
+
+class GreenBinding:
+    """Points bound to a cage by differentiable Green coordinates (torch).
+
+    What :func:`cagekit_learn.bind` returns for ``method="green"``, the twin of
+    :class:`cagekit.coords.GreenBinding`; the learned mode deforms with it when trained
+    with Green coordinates.
+
+    Attributes
+    ----------
+    phi : (n, k) torch.Tensor
+        Vertex coordinates; rows sum to one. Keeps its autograd graph.
+    psi : (n, m) torch.Tensor
+        Face coordinates (in the cage's units).
+    cage_v : (k, 3) torch.Tensor
+        The cage the points were bound to.
+    cage_f : (m, 3) int64 torch.Tensor
+        Its faces, oriented outward.
+    method : str
+        ``"green"``.
+    """
+
+    def __init__(self, phi: torch.Tensor, psi: torch.Tensor, cage_v: torch.Tensor,
+                 cage_f: torch.Tensor) -> None:
+        self.phi, self.psi = phi, psi
+        self.cage_v, self.cage_f = cage_v, cage_f
+        self.method = "green"
+
+    @property
+    def n_points(self) -> int:
+        """Number of bound points."""
+        return self.phi.shape[0]
+
+    def deform(self, new_cage_v: torch.Tensor | ArrayLike) -> torch.Tensor:
+        """Positions of the bound points for moved cage vertices (:func:`green_deform`).
+
+        Parameters
+        ----------
+        new_cage_v : (k, 3) torch.Tensor or array_like
+            The moved cage vertices, in the same order; an array is converted to the
+            coordinates' dtype and device.
+
+        Returns
+        -------
+        (n, 3) torch.Tensor
+            Differentiable in the coordinates and in ``new_cage_v``.
+
+        Examples
+        --------
+        >>> from cagekit.cage.shapes import box_cage
+        >>> v, f = box_cage()
+        >>> x = torch.tensor([[0.5, 0.0, 0.0]], dtype=torch.float64)
+        >>> phi, psi = green_coordinates(x, torch.tensor(v), f)
+        >>> b = GreenBinding(phi, psi, torch.tensor(v), torch.as_tensor(f))
+        >>> (b.deform(2 * v + 1).round(decimals=12) + 0.0).tolist()  # similarities: exact
+        [[2.0, 1.0, 1.0]]
+        """
+        new = new_cage_v
+        if not isinstance(new, torch.Tensor):
+            new = torch.as_tensor(np.asarray(new, dtype=np.float64), dtype=self.phi.dtype,
+                                  device=self.phi.device)
+        if tuple(new.shape) != tuple(self.cage_v.shape):
+            raise InputError(f"deformed cage has shape {tuple(new.shape)}, the bound cage "
+                             f"has {tuple(self.cage_v.shape)}: vertex counts must match")
+        if new.dtype != self.phi.dtype:
+            raise InputError(f"deformed cage has dtype {new.dtype}, the coordinates have "
+                             f"{self.phi.dtype}")
+        if not bool(torch.isfinite(new.detach()).all()):
+            raise InputError("deformed cage has NaN or inf coordinates")
+        return green_deform(self.phi, self.psi, self.cage_v, new, self.cage_f.cpu().numpy())
 
 
 def _as_tensor(a, name) -> torch.Tensor:

@@ -243,3 +243,39 @@ def test_grid_places_rows_side_by_side(tmp_path):
     assert img.shape[:2] == (3 * 120, 2 * 2 * 100)
     assert (img[2 * 120:, 2 * 100:] == 1.0).all()  # nothing where the sixth row would be
     assert (img[2 * 120:, :2 * 100] < 1.0).any()  # the fifth row is drawn
+
+
+# ------------------------------------------------------------ panel titles (issue 33, item 6)
+
+
+@pytest.mark.parametrize("paths, expected", [
+    (["a/girl/pose_003.obj", "a/suit/pose_003.obj", "b/male/pose_003.obj"],
+     ["girl/pose_003.obj", "suit/pose_003.obj", "male/pose_003.obj"]),
+    (["x/chair.obj", "y/table.obj"], ["chair.obj", "table.obj"]),
+    (["p/q/s.obj", "r/q/s.obj", "t.obj"], ["p/q/s.obj", "r/q/s.obj", "t.obj"]),
+    (["./x/s.obj", "s.obj"], ["x/s.obj", "s.obj"]),
+    (["d/s.obj", "d/./s.obj", "e/s.obj"], ["d/s.obj", "d/s.obj", "e/s.obj"]),  # one file twice
+])
+def test_shortest_unique_names(paths, expected):
+    from cagekit.render import shortest_unique_names
+
+    assert shortest_unique_names(paths) == expected
+
+
+def test_render_command_titles_panels_by_their_unique_paths(tmp_path, monkeypatch):
+    import shutil
+
+    from builders import invoke
+
+    import cagekit.render
+
+    for folder in ("girl", "suit"):
+        (tmp_path / folder).mkdir()
+        shutil.copy(os.path.join(EXAMPLE, "shape.obj"), tmp_path / folder / "pose_003.obj")
+    seen = {}
+    monkeypatch.setattr(cagekit.render, "render_meshes",
+                        lambda shapes, out, **kw: seen.update(kw))
+    result = invoke("render", tmp_path / "girl" / "pose_003.obj",
+                    tmp_path / "suit" / "pose_003.obj", "-o", tmp_path / "x.png")
+    assert result.exit_code == 0, result.output
+    assert seen["titles"] == ["girl/pose_003.obj", "suit/pose_003.obj"]

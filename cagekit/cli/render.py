@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
@@ -82,7 +81,7 @@ def render(ctx: click.Context, meshes: tuple[str, ...], out: str, cages: tuple[s
           -o compare.png
     """
     from cagekit.io import load_mesh, load_shape
-    from cagekit.render import render_meshes
+    from cagekit.render import render_meshes, shortest_unique_names
 
     start_command(ctx)
     if len(cages) > len(meshes):
@@ -97,6 +96,6 @@ def render(ctx: click.Context, meshes: tuple[str, ...], out: str, cages: tuple[s
     cage_shapes: list[tuple[Vertices, Faces] | None] = [load_mesh(path) for path in cages]
     cage_shapes += [None] * (len(shapes) - len(cage_shapes))
     if not titles:
-        titles = [os.path.basename(path) for path in meshes]
+        titles = shortest_unique_names(meshes)  # girl/pose_3.obj, suit/pose_3.obj
     render_meshes(shapes, out, cages=cage_shapes, titles=list(titles), caption=caption,
                   views=views, size=size, up=up, same_scale=same_scale)

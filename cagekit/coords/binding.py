@@ -53,7 +53,8 @@ class CageBinding:
     cage_f : (m, 3) int64
         Its faces, oriented outward.
     method : str
-        The coordinates used (``"mvc"``).
+        ``"mvc"``: what :func:`bind` returns for it (Green coordinates give a
+        :class:`GreenBinding`).
     """
 
     def __init__(self, weights: Floats, cage_v: Vertices, cage_f: Faces, method: str) -> None:
@@ -226,7 +227,10 @@ def bind(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike, method: str = 
     Returns
     -------
     CageBinding or GreenBinding
-        As ``method``; type checkers see which from a literal ``method``.
+        ``"mvc"``: a :class:`CageBinding` (``weights``, ``(n, k)``); ``"green"``: a
+        :class:`GreenBinding` (``phi``, ``(n, k)``, and ``psi``, ``(n, m)``); both have
+        ``deform``, ``encloses``, ``n_points`` and ``method``. Type checkers see which
+        from a literal ``method``.
 
     Examples
     --------

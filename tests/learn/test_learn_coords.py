@@ -494,7 +494,7 @@ def test_input_errors():
     with pytest.raises(InputError, match="chunk_size"):
         mean_value_coordinates(p, V, f, chunk_size=0)
     with pytest.raises(InputError, match="unknown coordinates"):
-        bind(p, V, f, method="green")
+        bind(p, V, f, method="harmonic")  # "green" is bound (tests/learn/test_learn_green.py)
     w = mean_value_coordinates(p, V, f)
     with pytest.raises(InputError, match="vertex counts"):
         deform(w, V[:5])

@@ -101,3 +101,60 @@ def test_bad_inputs():
         green_coordinates(torch.zeros((1, 3), dtype=torch.float32), torch.tensor(v), f)
     with pytest.raises(InputError, match="shape"):
         green_coordinates(torch.zeros((1, 2), dtype=torch.float64), torch.tensor(v), f)
+
+
+# ------------------------------------------------- cagekit_learn.bind(..., method="green")
+
+
+@pytest.mark.parametrize("name", ["box3", "ico1", "star"])
+def test_bind_green_equals_the_core_binding(name):
+    # issue 33, item 6: the learned mode's bind takes "green" and returns what the core's
+    # bind returns for it, in float64, the faces flipped like the core's when inward
+    import cagekit_learn
+    from cagekit_learn.green import GreenBinding
+
+    v, f = CAGES[name]
+    p = nasty_points(v, f, 5)
+    moved = v * [1.2, 0.9, 1.1] + 0.02 * diag(v) * np.random.default_rng(6).normal(
+        size=v.shape)
+    core = bind(p, v, f, method="green")
+    for faces in (f, f[:, ::-1].copy()):
+        b = cagekit_learn.bind(torch.tensor(p), torch.tensor(v), faces, method="green")
+        assert isinstance(b, GreenBinding) and b.method == "green"
+        assert b.n_points == len(p)
+        np.testing.assert_allclose(b.phi.numpy(), core.phi, rtol=0, atol=1e-10)
+        np.testing.assert_allclose(b.psi.numpy(), core.psi, rtol=0, atol=1e-10 * diag(v))
+        np.testing.assert_allclose(b.deform(moved).numpy(), core.deform(moved), rtol=0,
+                                   atol=1e-9 * diag(v))
+        np.testing.assert_allclose(b.deform(torch.tensor(v)).numpy(), p, rtol=0,
+                                   atol=1e-9 * diag(v))
+
+
+def test_bind_green_is_differentiable_and_refuses_batches():
+    import cagekit_learn
+
+    v, f = box_cage(1)
+    cage = torch.tensor(v, requires_grad=True)
+    b = cagekit_learn.bind(torch.tensor([[0.1, 0.2, -0.3]], dtype=torch.float64), cage, f,
+                           method="green")
+    b.deform(2 * cage).sum().backward()
+    assert bool(torch.isfinite(cage.grad).all()) and float(cage.grad.abs().sum()) > 0
+    with pytest.raises(InputError, match="one cage at a time"):
+        cagekit_learn.bind(torch.zeros(2, 4, 3, dtype=torch.float64), torch.tensor(v), f,
+                           method="green")
+    with pytest.raises(InputError, match="vertex counts"):
+        b.deform(torch.zeros(3, 3, dtype=torch.float64))
+    with pytest.raises(InputError, match="available: mvc, green"):
+        cagekit_learn.bind(torch.zeros(1, 3, dtype=torch.float64), torch.tensor(v), f,
+                           method="harmonic")
+
+
+def test_dir_lists_the_lazy_names():
+    # issue 33, item 6: the names loaded on first use are listed by dir()
+    import cagekit_learn
+
+    listed = dir(cagekit_learn)
+    assert set(cagekit_learn.__all__) <= set(listed)
+    assert {"bind", "GreenBinding", "load_model"} <= set(listed)
+    for name in cagekit_learn.__all__:
+        assert getattr(cagekit_learn, name) is not None
