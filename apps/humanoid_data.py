@@ -30,6 +30,12 @@ elbows too far for that (the skinned cage folds), so the reverse examples are re
 poses, as a template's rest pose and T-pose are. Usage::
 
     python -m apps.humanoid_data OUT_DIR [--poses 20] [--train-poses 1000] [--seed 0]
+        [--characters NAME,...] [--no-truth] [--no-reverse]
+
+Only what ``cagekit transfer`` reads, for one character (20 MB instead of 810)::
+
+    python -m apps.humanoid_data OUT_DIR --characters relaxed --train-poses 0 --no-truth \
+        --no-reverse
 """
 
 from __future__ import annotations
@@ -47,8 +53,8 @@ from cagekit.errors import InputError
 from cagekit.io.files import atomic_output, output_folder
 from cagekit.io.landmarks import save_landmarks, save_picked
 
-__all__ = ["REVERSE_POSES", "TEST_POSE_SEED", "landmark_names", "landmarks_of", "posed_cage",
-           "template_cage", "write"]
+__all__ = ["REVERSE_POSES", "TEST_POSE_SEED", "choose_characters", "landmark_names",
+           "landmarks_of", "posed_cage", "template_cage", "write"]
 
 #: seed of the first test pose; training poses use seeds below it
 TEST_POSE_SEED = 100_000
@@ -77,6 +83,42 @@ def landmark_names(count: int) -> list[str]:
         raise InputError(f"landmark count must lie in [4, {len(names)}], got {count}")
     index = np.round(np.linspace(0, len(names) - 1, count)).astype(int)
     return [names[i] for i in index]
+
+
+def choose_characters(chosen: str | None) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """The bodies and the novel characters named by ``--characters``.
+
+    Parameters
+    ----------
+    chosen : str or None
+        Comma-separated names of bodies (``humanoid.NOVEL_BODIES``, ``UNLIKE_BODIES``) and
+        novel characters (``characters.CHARACTERS``); None: all of them.
+
+    Returns
+    -------
+    (tuple of str, tuple of str)
+        The bodies, then the novel characters, each in the order given.
+
+    Raises
+    ------
+    InputError
+        A name that is neither, or no name at all.
+
+    Examples
+    --------
+    >>> choose_characters("relaxed,stocky")
+    (('stocky',), ('relaxed',))
+    """
+    bodies = (*humanoid.NOVEL_BODIES, *humanoid.UNLIKE_BODIES)
+    novel = tuple(characters.CHARACTERS)
+    if chosen is None:
+        return bodies, novel
+    names = [name.strip() for name in chosen.split(",") if name.strip()]
+    unknown = [name for name in names if name not in (*bodies, *novel)]
+    if unknown or not names:
+        raise InputError(f"--characters: unknown {', '.join(unknown) or 'empty list'}; "
+                         f"choose from {', '.join((*bodies, *novel))}")
+    return (tuple(n for n in names if n in bodies), tuple(n for n in names if n in novel))
 
 
 def landmarks_of(rig, names, vertices=None) -> dict[str, np.ndarray]:
@@ -148,7 +190,8 @@ def posed_cage(rig, cage_v, cage_f, pose, neighbours: int = 8) -> np.ndarray:
 def write(out_dir, *, poses: int = 20, train_poses: int = 1000, seed: int = 0,
           landmarks: int = 100, cage: str = "artist", cage_faces: int = 196,
           resolution: float = 1.0, bodies=(*humanoid.NOVEL_BODIES, *humanoid.UNLIKE_BODIES),
-          novel=tuple(characters.CHARACTERS), reverse: bool = True) -> dict:
+          novel=tuple(characters.CHARACTERS), reverse: bool = True,
+          truth: bool = True) -> dict:
     """Write the data set described in the module docstring.
 
     Parameters
@@ -172,6 +215,9 @@ def write(out_dir, *, poses: int = 20, train_poses: int = 1000, seed: int = 0,
         Novel characters (names of :data:`cagekit.datasets.characters.CHARACTERS`).
     reverse : bool
         Write the reverse examples (:data:`REVERSE_POSES`).
+    truth : bool
+        Write the ground truth (``truth/``: each body and novel character in each test
+        pose, the novel characters in the T-pose).
 
     Returns
     -------
@@ -183,8 +229,9 @@ def write(out_dir, *, poses: int = 20, train_poses: int = 1000, seed: int = 0,
     names = landmark_names(landmarks)
     out = Path(out_dir)
     with output_folder(out):
-        for folder in ("characters", "poses", "reverse", "train",
-                       *(f"truth/{b}" for b in (*bodies, *novel))):
+        for folder in ("characters", "poses", *(["reverse"] if reverse else []),
+                       *(["train"] if train_poses else []),
+                       *(f"truth/{b}" for b in ((*bodies, *novel) if truth else ()))):
             (out / folder).mkdir(parents=True, exist_ok=True)
         template = humanoid.rig("template", resolution=resolution)
         io.save_mesh(out / "template.obj", template.vertices, template.faces)
@@ -192,8 +239,8 @@ def write(out_dir, *, poses: int = 20, train_poses: int = 1000, seed: int = 0,
         io.save_mesh(out / "template_cage.obj", cage_v, cage_f)
         save_landmarks(out / "template_landmarks.json", landmarks_of(template, names))
         posable = _write_characters(out, names, bodies, novel, resolution, template.faces,
-                                    seed)
-        _write_test_poses(out, template, posable, poses)
+                                    seed, truth)
+        _write_test_poses(out, template, posable if truth else {}, poses)
         if reverse:
             _write_reverse_examples(out, template, (cage_v, cage_f), names)
         for i in range(train_poses):
@@ -204,16 +251,17 @@ def write(out_dir, *, poses: int = 20, train_poses: int = 1000, seed: int = 0,
                "poses": poses, "reverse_poses": len(REVERSE_POSES) if reverse else 0,
                "train_poses": train_poses, "landmarks": len(names), "cage": cage,
                "template_vertices": len(template.vertices),
-               "cage_vertices": len(cage_v), "cage_faces": len(cage_f), "seed": seed}
+               "cage_vertices": len(cage_v), "cage_faces": len(cage_f), "seed": seed,
+               "truth": truth}
     with atomic_output(out / "manifest.json") as tmp, open(tmp, "w") as fh:
         json.dump(summary, fh, indent=2)
         fh.write("\n")
     return summary
 
 
-def _write_characters(out, names, bodies, novel, resolution, faces, seed) -> dict:
+def _write_characters(out, names, bodies, novel, resolution, faces, seed, truth) -> dict:
     """The bodies (template mesh) and the novel characters in rest pose, their landmarks
-    and the novel ones' T-pose; returns name -> (pose function, faces)."""
+    and (with ``truth``) the novel ones' T-pose; returns name -> (pose function, faces)."""
     posable = {}
     for body in bodies:
         rig = humanoid.rig(body, resolution=resolution)
@@ -224,7 +272,8 @@ def _write_characters(out, names, bodies, novel, resolution, faces, seed) -> dic
         char = characters.character(name, labels=names, seed=seed)
         io.save_mesh(out / "characters" / f"{name}.obj", char.vertices, char.faces)
         save_picked(out / "characters" / f"{name}.picked", char.landmarks)
-        io.save_mesh(out / "truth" / name / "t_pose.obj", char.truth({}), char.faces)
+        if truth:
+            io.save_mesh(out / "truth" / name / "t_pose.obj", char.truth({}), char.faces)
         posable[name] = (char.truth, char.faces)
     return posable
 
@@ -263,16 +312,25 @@ def _write_reverse_examples(out, template, cage, names) -> None:
                                       "cagekit.fit_cage.")
 @click.option("--cage-faces", default=196, show_default=True, type=click.IntRange(min=20),
               help="Face budget of --cage fit (196 faces: 100 vertices).")
+@click.option("--characters", "chosen", default=None, metavar="NAME[,NAME...]",
+              help="Only these bodies and novel characters (default: all of them).")
+@click.option("--truth/--no-truth", default=True, show_default=True,
+              help="Write the ground truth (truth/).")
+@click.option("--reverse/--no-reverse", default=True, show_default=True,
+              help="Write the reverse examples (reverse/).")
 @click.option("--resolution", default=1.0, show_default=True,
               type=FiniteFloatRange(min=0.25, max=4.0), help="Mesh resolution of the bodies.")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0))
 @json_option
 @debug_option
-def main(out_dir, poses, train_poses, landmarks, cage, cage_faces, resolution, seed, as_json):
+def main(out_dir, poses, train_poses, landmarks, cage, cage_faces, chosen, truth, reverse,
+         resolution, seed, as_json):
     """Write posed humanoids with ground truth to OUT_DIR (see the module docstring)."""
+    bodies, novel = choose_characters(chosen)
     summary = write(out_dir, poses=poses, train_poses=train_poses, seed=seed,
                     landmarks=landmarks, cage=cage, cage_faces=cage_faces,
-                    resolution=resolution)
+                    resolution=resolution, bodies=bodies, novel=novel, truth=truth,
+                    reverse=reverse)
     if as_json:
         emit_json(summary)
     else:

@@ -9,10 +9,13 @@ draws the hands' landmarks down onto its hem), each wanted landmark of the fitte
 snapped to the nearest point of the character's surface that faces the same way (normals
 within 70 degrees: an arm's inner point lands on the arm, not on the torso beside it), and
 the points are written as a Thea ``.picked`` file (face index, barycentric coordinates,
-label, position), the way a person clicking in Thea would. A picture of each fit goes to
+label, position), the way a person clicking in Thea would. The template's own landmarks
+of the same labels go to ``template.json`` (the vertices of ``apps.humanoid_data``'s
+``template.obj`` that carry them), so that every label matches. A picture of each fit goes to
 ``out/characters/``. Run from the repository root::
 
     python data/place_character_landmarks.py          # writes data/characters/*.picked
+                                                      # and template.json
     python data/place_character_landmarks.py --out DIR
 
 Needs the package (``sudo apt-get install sweethome3d-furniture``); the models are CC BY
@@ -34,22 +37,26 @@ sys.path.insert(0, ROOT)
 CHARACTERS = (("Reallusion", "male02", "reallusion_male02"),
               ("Reallusion", "girlStanding", "reallusion_girl_standing"),
               ("KatorLegaz", "male-01-suit", "katorlegaz_male_01_suit"))
-#: the labels placed: 12 on the centre line, 24 a side (torso sides, both sides of every
-#: limb: what keeps each limb's cage apart from the torso's)
-CENTRE = ("head_top", "nose_tip", "chin", "head_back", "neck_front", "neck_back",
-          "chest_front", "belly", "pelvis_front", "back_upper", "back_lower", "pelvis_back")
 #: shoulder-to-wrist lengths tried (fractions of the height; the template's is 0.33)
 ARM_RATIOS = (0.27, 0.30, 0.33)
-SIDE = ("waist", "hip_side", "chest", "shoulder_top", "upper_arm_mid_outer",
-        "upper_arm_mid_inner", "upper_arm_dist_front", "forearm_mid_outer",
-        "forearm_mid_inner", "forearm_dist_back", "hand_tip", "thumb_tip", "hand_back", "palm",
-        "thigh_prox_outer", "thigh_mid_inner", "thigh_mid_front", "thigh_dist_outer",
-        "kneecap", "shin_mid_back", "shin_mid_inner", "ankle_outer", "heel", "toe")
 
 
 def labels() -> list[str]:
-    """The 60 labels placed (:data:`CENTRE`, then :data:`SIDE` on the left and the right)."""
-    return [*CENTRE, *(f"{side}_{name}" for side in "lr" for name in SIDE)]
+    """The 60 labels placed (``cagekit.datasets.humanoid.PICKED_LANDMARK_NAMES``: 12 on
+    the centre line, then 24 on the left and the same 24 on the right)."""
+    from cagekit.datasets.humanoid import PICKED_LANDMARK_NAMES
+
+    return list(PICKED_LANDMARK_NAMES)
+
+
+def write_template(path: str) -> None:
+    """The template's landmarks of :func:`labels` (JSON): the vertices of the humanoid
+    template (``apps.humanoid_data``'s ``template.obj``, resolution 1) that carry them."""
+    from cagekit.datasets import humanoid
+    from cagekit.io.landmarks import save_landmarks
+
+    rig = humanoid.rig("template")
+    save_landmarks(path, {name: rig.vertices[rig.landmarks[name]] for name in labels()})
 
 
 def find(catalog: str, stem: str):
@@ -149,6 +156,7 @@ def main(argv=None) -> None:
     os.makedirs(args.out, exist_ok=True)
     os.makedirs(args.pictures, exist_ok=True)
     names = labels()
+    write_template(os.path.join(args.out, "template.json"))
     for catalog, stem, name in CHARACTERS:
         model = find(catalog, stem)
         V, F = io.load_mesh(model.path)

@@ -39,8 +39,8 @@ from numpy.typing import ArrayLike
 from cagekit.typed import Faces, Floats, Vertices
 
 __all__ = ["BODY_SHAPES", "JOINTS", "LANDMARK_NAMES", "NOVEL_BODIES", "UNLIKE_BODIES", "PARENTS",
-           "RIGID_PARENTS", "RIGID_PARTS", "BodyShape", "Rig", "humanoid", "landmark_part",
-           "random_body", "random_pose", "rig", "rotation_matrix"]
+           "PICKED_LANDMARK_NAMES", "RIGID_PARENTS", "RIGID_PARTS", "BodyShape", "Rig",
+           "humanoid", "landmark_part", "random_body", "random_pose", "rig", "rotation_matrix"]
 
 _Mesh = tuple[np.ndarray, np.ndarray]
 
@@ -798,6 +798,21 @@ def _landmark_specs() -> list[_LandmarkSpec]:
 
 LANDMARK_NAMES: tuple[str, ...] = tuple(name for name, *_ in _landmark_specs())
 """All landmark names in a fixed order (161): 96 limb points, then the rest."""
+
+_PICKED_CENTRE = ("head_top", "nose_tip", "chin", "head_back", "neck_front", "neck_back",
+                  "chest_front", "belly", "pelvis_front", "back_upper", "back_lower",
+                  "pelvis_back")
+_PICKED_SIDE = ("waist", "hip_side", "chest", "shoulder_top", "upper_arm_mid_outer",
+                "upper_arm_mid_inner", "upper_arm_dist_front", "forearm_mid_outer",
+                "forearm_mid_inner", "forearm_dist_back", "hand_tip", "thumb_tip", "hand_back",
+                "palm", "thigh_prox_outer", "thigh_mid_inner", "thigh_mid_front",
+                "thigh_dist_outer", "kneecap", "shin_mid_back", "shin_mid_inner", "ankle_outer",
+                "heel", "toe")
+PICKED_LANDMARK_NAMES: tuple[str, ...] = (
+    *_PICKED_CENTRE, *(f"{side}_{name}" for side in "lr" for name in _PICKED_SIDE))
+"""The 60 labels to pick on a character of one's own (those of ``data/characters/``): 12
+on the centre line, then 24 on the left and the same 24 on the right (the torso's sides,
+both sides of every limb: what keeps each limb's cage apart from the torso's)."""
 
 RIGID_PARTS: tuple[str, ...] = ("head", "chest", "pelvis", *(
     f"{side}_{part}" for side in "lr"

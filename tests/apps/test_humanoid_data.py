@@ -80,3 +80,40 @@ def test_landmark_names_spread_and_bounds():
     assert humanoid_data.landmark_names(len(every)) == list(every)
     with pytest.raises(InputError):
         humanoid_data.landmark_names(3)
+
+
+def test_only_what_the_transfer_recipe_reads_is_written(tmp_path):
+    # issue 33: the README recipe wrote 810 MB (1,000 training poses, every character's
+    # ground truth) to use 20 poses and one character
+    summary = humanoid_data.write(tmp_path, poses=1, train_poses=0, landmarks=40,
+                                  resolution=0.5, bodies=(), novel=("relaxed",),
+                                  truth=False, reverse=False)
+    written = sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*"))
+    assert written == ["characters", "characters/relaxed.obj", "characters/relaxed.picked",
+                       "manifest.json", "poses", "poses/pose_000.obj", "template.obj",
+                       "template_cage.obj", "template_landmarks.json"]
+    assert summary["truth"] is False and summary["train_poses"] == 0
+
+
+def test_characters_are_chosen_by_name_and_unknown_names_refused():
+    assert humanoid_data.choose_characters("relaxed, stocky,a_pose") == (
+        ("stocky",), ("relaxed", "a_pose"))
+    bodies, novel = humanoid_data.choose_characters(None)
+    assert "stocky" in bodies and "relaxed" in novel
+    with pytest.raises(InputError, match="unknown relaxd.*choose from"):
+        humanoid_data.choose_characters("relaxed,relaxd")
+    with pytest.raises(InputError, match="empty"):
+        humanoid_data.choose_characters(" , ")
+
+
+def test_the_command_line_takes_the_recipe_s_options(tmp_path):
+    from click.testing import CliRunner
+
+    result = CliRunner().invoke(humanoid_data.main, [
+        str(tmp_path / "d"), "--characters", "relaxed", "--poses", "1", "--train-poses", "0",
+        "--no-truth", "--no-reverse", "--resolution", "0.5", "--landmarks", "40"])
+    assert result.exit_code == 0, result.output
+    assert not (tmp_path / "d" / "truth").exists() and not (tmp_path / "d" / "reverse").exists()
+    assert (tmp_path / "d" / "characters" / "relaxed.picked").exists()
+    bad = CliRunner().invoke(humanoid_data.main, [str(tmp_path / "e"), "--characters", "x"])
+    assert bad.exit_code == 2 and "unknown x" in bad.output
