@@ -2,7 +2,7 @@
 
 Runs the three methods of ``cagekit.deform`` (``cage``, ``scale``, ``nricp`` =
 ``trimesh.registration.nricp_amberg``) on the same source-target pairs in one process and
-prints, per pair and in median, CD x 10^2 and dCotLap x 10^3 (DESIGN.md definitions,
+prints, per pair and in median, CD x 10^2 and dCotLap x 10^3 (docs/architecture.md definitions,
 ``cagekit.evaluate``: 5,000 samples a surface, seed 0) and seconds. The pairs:
 
 - procedural chairs, tables and vases of different proportions
@@ -16,7 +16,7 @@ prints, per pair and in median, CD x 10^2 and dCotLap x 10^3 (DESIGN.md definiti
   :data:`PAIRS_PER_KIND` of each kind), models of at most :data:`MAX_REAL_VERTICES`
   vertices (skipped when the package is missing).
 
-Besides CD and dCotLap, the structure figures of ``cagekit.evaluate`` (DESIGN.md): part
+Besides CD and dCotLap, the structure figures of ``cagekit.evaluate`` (docs/architecture.md): part
 non-affinity (median over parts and worst part, %) and planarity (95th percentile,
 degrees).
 

@@ -3,7 +3,7 @@
 Trains :mod:`cagekit_learn` (N_c + N_d, default settings, batch 8) on procedural chairs
 (``cagekit.datasets.synthetic``, seeds 0..N-1) for a fixed CPU time budget, then on
 held-out pairs of chairs the training never saw (seeds from 10,000 on) prints, per method,
-the median CD x 10^2 and dCotLap x 10^3 (DESIGN.md definitions, ``cagekit.evaluate``) and
+the median CD x 10^2 and dCotLap x 10^3 (docs/architecture.md definitions, ``cagekit.evaluate``) and
 seconds per pair:
 
 - ``scale``: the bounding boxes mapped onto each other (``cagekit.deform(method="scale")``);

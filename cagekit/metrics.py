@@ -16,7 +16,7 @@ is invariant to translating ``V_out``, not to rotating or scaling it. Duplicate 
 zero-area faces are removed before ``L`` is built (a vertex only on such faces gets an empty
 row, still counted in ``n``); a source without faces of positive area raises ``InputError``.
 
-The structure figures (DESIGN.md, "Metrics") see what CD and dCotLap do not: a chair leg
+The structure figures (docs/architecture.md, "Metrics") see what CD and dCotLap do not: a chair leg
 bent, a seat warped, a symmetric chair made lopsided. :func:`part_nonaffinity` fits an
 affine map to each connected component of the source, :func:`planarity` measures how far
 adjacent faces of its planar regions turn against each other and :func:`symmetry_error`

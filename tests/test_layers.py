@@ -1,7 +1,8 @@
-"""The layers point one way (DESIGN.md): core < cagekit_learn < apps, the command line using
-core and learn; the core and its command line never import the applications (which may
-run the command line: ``python -m apps.deformation_transfer``). The Blender add-on ships
-without ``apps`` (its extension holds the wheel of cagekit), so it imports none of it.
+"""The layers point one way (docs/architecture.md, section 1): core < cagekit_learn < apps,
+the command line using core and learn; the core and its command line never import the
+applications (which may run the command line: ``python -m apps.deformation_transfer``). The
+Blender add-on ships without ``apps`` (its extension holds the wheel of cagekit), so it
+imports none of it.
 
 Read from the source (ast), so a lazy import inside a function counts as well. No module
 imports from a layer above its own, nor another module's private (``_name``) names. The

@@ -1,4 +1,4 @@
-"""Tests of cagekit.metrics against known answers (DESIGN.md, "Metrics")."""
+"""Tests of cagekit.metrics against known answers (docs/architecture.md, "Metrics")."""
 
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""The wheel (DESIGN.md): the packages ``cagekit`` and ``cagekit_learn``, each with its
+"""The wheel: the packages ``cagekit`` and ``cagekit_learn``, each with its
 ``py.typed`` (PEP 561), the shipped models, and nothing else at the top (no ``apps``, a
 folder name any other project may use), built from a copy of the sources with this
 environment's setuptools (no network)."""

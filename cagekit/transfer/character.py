@@ -437,7 +437,7 @@ def cage_oracle(weights: ArrayLike, truth_v: ArrayLike) -> tuple[Vertices, Verti
     A transfer rule moves the character's cage; no rule can do better than the cage
     position whose coordinates reproduce the truth (the character posed by its own rig)
     most closely. Reported beside every rule, it separates the error the rule causes from
-    the error the cage itself cannot avoid (DESIGN.md, "Transfer metric").
+    the error the cage itself cannot avoid (docs/architecture.md, "Transfer metric").
 
     Parameters
     ----------
