@@ -1,6 +1,8 @@
 """Files in and out: meshes and point clouds, landmarks, checked reading and atomic writing.
 
 - :mod:`~cagekit.io.meshes`: :func:`load_mesh`, :func:`save_mesh`, point clouds;
+- :mod:`~cagekit.io.assets`: a deformed shape written as a copy of its source file, keeping
+  UVs, materials, groups, colours and (carried) normals;
 - :mod:`~cagekit.io.landmarks`: landmark files and matching landmarks by label;
 - :mod:`~cagekit.io.files`: checked reading, atomic writing, output folders removed on
   failure.
@@ -8,6 +10,7 @@
 The mesh and landmark functions are re-exported here (``cagekit.io.load_mesh``).
 """
 
+from cagekit.io.assets import asset_contents, save_deformed
 from cagekit.io.landmarks import load_landmarks, save_landmarks, save_picked
 from cagekit.io.meshes import (
     SUPPORTED_MESH_EXTENSIONS,
@@ -19,6 +22,7 @@ from cagekit.io.meshes import (
     save_points,
 )
 
-__all__ = ["SUPPORTED_MESH_EXTENSIONS", "SUPPORTED_POINT_EXTENSIONS", "load_landmarks",
+__all__ = ["SUPPORTED_MESH_EXTENSIONS", "SUPPORTED_POINT_EXTENSIONS", "asset_contents",
+           "load_landmarks",
            "load_mesh", "load_points", "load_shape", "save_landmarks", "save_mesh",
-           "save_picked", "save_points"]
+           "save_deformed", "save_picked", "save_points"]

@@ -397,7 +397,7 @@ _PLY_TYPES = {
 }  # fmt: skip
 
 
-def _ply_header(data, path):
+def ply_header(data, path):
     """Parse a PLY header into (format, [(element, count, [(name, type, list_count_type)])])."""
     end = data.find(b"end_header")
     if not data.startswith(b"ply") or end < 0:
@@ -436,7 +436,7 @@ def _as_columns(columns):
     }
 
 
-def _ply_ascii_element(tokens, pos, count, props):
+def ply_ascii_element(tokens, pos, count, props):
     """Read one element of an ASCII PLY: {name: column or (flat, sizes)}, new position."""
     if all(counter is None for _, _, counter in props):
         block = tokens[pos : pos + count * len(props)]
@@ -463,7 +463,7 @@ def _ply_ascii_element(tokens, pos, count, props):
     return _as_columns(columns), pos
 
 
-def _ply_binary_element(data, pos, count, props, endian):
+def ply_binary_element(data, pos, count, props, endian):
     """Read one element of a binary PLY: {name: column or (flat, sizes)}, new position."""
     # Fast path: assume every list is as long as in the first row, then check it.
     fields, offset = [], pos
@@ -505,7 +505,7 @@ def _ply_binary_element(data, pos, count, props, endian):
 
 def _read_ply(path):
     data = read_bytes(path, MeshFileError)
-    fmt, elements, pos = _ply_header(data, path)
+    fmt, elements, pos = ply_header(data, path)
     if fmt == "ascii":
         body = data[pos:].decode("ascii", errors="replace").split()
         pos = 0
@@ -515,10 +515,10 @@ def _read_ply(path):
             break
         try:
             if fmt == "ascii":
-                values[name], pos = _ply_ascii_element(body, pos, count, props)
+                values[name], pos = ply_ascii_element(body, pos, count, props)
             else:
                 endian = "<" if fmt == "binary_little_endian" else ">"
-                values[name], pos = _ply_binary_element(data, pos, count, props, endian)
+                values[name], pos = ply_binary_element(data, pos, count, props, endian)
         except (EOFError, IndexError, struct.error):
             raise MeshFileError(
                 f"is truncated: the data ends inside element '{name}' ({count} declared)", path
@@ -648,8 +648,8 @@ def save_mesh(path: str | os.PathLike, V: ArrayLike, F: ArrayLike) -> None:
             f"use one of {', '.join(_MESH_WRITERS)}",
             path,
         )
-    V = _valid_vertices(V, path)
-    F = _valid_faces(F, len(V), path)
+    V = valid_vertices(V, path)
+    F = valid_faces(F, len(V), path)
     with atomic_output(path) as tmp:
         writer(tmp, V, F)
 
@@ -681,12 +681,12 @@ def save_points(path: str | os.PathLike, V: ArrayLike) -> None:
             f"use one of {', '.join(_POINT_WRITERS)}",
             path,
         )
-    V = _valid_vertices(V, path)
+    V = valid_vertices(V, path)
     with atomic_output(path) as tmp:
         writer(tmp, V)
 
 
-def _valid_vertices(V, path) -> np.ndarray:
+def valid_vertices(V, path) -> np.ndarray:
     try:
         V = np.asarray(V, dtype=np.float64)
     except (TypeError, ValueError):
@@ -700,7 +700,7 @@ def _valid_vertices(V, path) -> np.ndarray:
     return np.ascontiguousarray(V)
 
 
-def _valid_faces(F, n_vertices, path) -> np.ndarray:
+def valid_faces(F, n_vertices, path) -> np.ndarray:
     try:
         F = np.asarray(F)
     except ValueError:  # ragged nested lists

@@ -1,0 +1,173 @@
+"""Tests of writing a deformed shape as a copy of its source file (cagekit.io.assets)."""
+
+import warnings
+
+import numpy as np
+import pytest
+import trimesh
+from PIL import Image
+from scipy.spatial.transform import Rotation
+
+from cagekit.errors import InputError, MeshFileWarning
+from cagekit.io import asset_contents, load_mesh, save_deformed, save_mesh
+
+R = Rotation.from_euler("xyz", [30, -50, 70], degrees=True).as_matrix()
+
+CUBE_V = [(x, y, z) for x in (0, 1) for y in (0, 1) for z in (0, 1)]
+CUBE_QUADS = [  # outward, 1-based, with each face's outward normal (flat shading)
+    ((1, 2, 4, 3), 1), ((5, 7, 8, 6), 2), ((1, 5, 6, 2), 3),
+    ((3, 4, 8, 7), 4), ((1, 3, 7, 5), 5), ((2, 6, 8, 4), 6),
+]
+CUBE_N = [(-1, 0, 0), (1, 0, 0), (0, -1, 0), (0, 1, 0), (0, 0, -1), (0, 0, 1)]
+
+
+@pytest.fixture
+def textured_obj(tmp_path):
+    """A flat-shaded cube of quads with vertex colours, UVs, two objects, two materials,
+    its material file beside it and its texture in a subfolder."""
+    folder = tmp_path / "source"
+    (folder / "maps").mkdir(parents=True)
+    Image.new("RGB", (8, 8), (200, 30, 30)).save(folder / "maps" / "wood.png")
+    (folder / "cube.mtl").write_text(
+        "newmtl wood\nKd 1 1 1\nmap_Kd maps/wood.png\n\n"
+        "newmtl plain\nKd 0.5 0.5 0.5\nbump -bm 0.5 maps/wood.png\n")
+    lines = ["# a test cube", "mtllib cube.mtl", "o box"]
+    lines += [f"v {x} {y} {z} 0.25 0.5 0.75" for x, y, z in CUBE_V]
+    lines += ["vt 0 0", "vt 1 0", "vt 1 1", "vt 0 1"]
+    lines += [f"vn {x} {y} {z}" for x, y, z in CUBE_N]
+    lines += ["usemtl wood", "g top_and_sides"]
+    for k, (quad, n) in enumerate(CUBE_QUADS):
+        if k == 4:
+            lines += ["o lid", "usemtl plain", "s off"]
+        lines.append("f " + " ".join(f"{v}/{t}/{n}" for v, t in zip(quad, (1, 2, 3, 4))))
+    path = folder / "cube.obj"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def _moved(V):
+    return 2.0 * V @ R.T + [3.0, -1.0, 0.5]
+
+
+def _records(path, key):
+    return [line for line in path.read_text().splitlines() if line.split()[:1] == [key]]
+
+
+def test_obj_keeps_uvs_materials_groups_colours_and_polygons(textured_obj, tmp_path):
+    before = textured_obj.read_bytes()
+    V, F = load_mesh(textured_obj)
+    out = tmp_path / "results" / "moved.obj"
+    out.parent.mkdir()
+    save_deformed(out, _moved(V), F, textured_obj)
+    assert textured_obj.read_bytes() == before  # the source is never written
+    np.testing.assert_array_equal(load_mesh(out)[0], _moved(V))
+    np.testing.assert_array_equal(load_mesh(out)[1], F)
+    for key in ("vt", "usemtl", "g", "o", "s"):
+        assert _records(out, key) == _records(textured_obj, key), key
+    assert [len(f.split()) for f in _records(out, "f")] == [5] * 6  # quads stay quads
+    assert all(line.split()[4:] == ["0.25", "0.5", "0.75"] for line in _records(out, "v"))
+    # the material file is copied beside the output, its texture found from there
+    assert _records(out, "mtllib") == ["mtllib moved.mtl"]
+    copied = (out.parent / "moved.mtl").read_text()
+    assert "map_Kd wood.png" in copied and "bump -bm 0.5 wood.png" in copied  # options kept
+    assert (out.parent / "wood.png").read_bytes() == \
+        (textured_obj.parent / "maps" / "wood.png").read_bytes()
+    scene = trimesh.load(out)
+    images = [g.visual.material.image for g in scene.geometry.values()
+              if getattr(g.visual.material, "image", None) is not None]
+    assert images and images[0].size == (8, 8)
+
+
+def test_obj_normals_are_carried_and_hard_edges_stay_hard(textured_obj, tmp_path):
+    V, F = load_mesh(textured_obj)
+    out = tmp_path / "moved.obj"
+    save_deformed(out, _moved(V), F, textured_obj)
+    normals = np.array([[float(x) for x in line.split()[1:]] for line in _records(out, "vn")])
+    assert len(normals) == 24  # one per (vertex, normal) pair: 6 faces x 4 corners
+    for face in _records(out, "f"):
+        corner_normals = normals[[int(t.split("/")[2]) - 1 for t in face.split()[1:]]]
+        n = CUBE_N[CUBE_QUADS[_records(out, "f").index(face)][1] - 1]
+        np.testing.assert_allclose(corner_normals, np.tile(R @ n, (4, 1)), atol=1e-12)
+
+
+def test_obj_written_beside_the_source_uses_its_material_file(textured_obj):
+    V, F = load_mesh(textured_obj)
+    out = textured_obj.parent / "cube_moved.obj"
+    save_deformed(out, _moved(V), F, textured_obj)
+    assert "map_Kd maps/wood.png" in (out.parent / "cube_moved.mtl").read_text()
+    assert not (out.parent / "wood.png").exists()  # reachable already: not copied
+
+
+@pytest.mark.parametrize("encoding", ["binary", "ascii"])
+def test_ply_keeps_colours_and_carries_normals(tmp_path, encoding):
+    mesh = trimesh.creation.icosphere(subdivisions=2)
+    colours = np.random.default_rng(0).integers(0, 256, (len(mesh.vertices), 4))
+    mesh.visual.vertex_colors = colours
+    source = tmp_path / "ball.ply"
+    source.write_bytes(trimesh.exchange.ply.export_ply(mesh, encoding=encoding,
+                                                       vertex_normal=True))
+    assert set(asset_contents(source)) == {"normals", "vertex colours"}
+    V, F = load_mesh(source)
+    out = tmp_path / "moved.ply"
+    save_deformed(out, _moved(V), F, source)
+    back = trimesh.load(out, process=False)
+    np.testing.assert_allclose(back.vertices, _moved(V), atol=1e-5)  # the file's float32
+    np.testing.assert_array_equal(back.visual.vertex_colors, colours)
+    rest = trimesh.load(source, process=False).vertex_normals
+    np.testing.assert_allclose(back.vertex_normals, rest @ R.T, atol=1e-5)
+
+
+def _textured_box(size, uv_seed):
+    box = trimesh.creation.box(extents=size)
+    uv = np.random.default_rng(uv_seed).random((len(box.vertices), 2))
+    image = Image.new("RGB", (4, 4), (10, 200, 10))
+    box.visual = trimesh.visual.TextureVisuals(uv=uv, image=image)
+    return box
+
+
+def test_glb_keeps_textures_scene_transforms_and_vertex_order(tmp_path):
+    scene = trimesh.Scene()
+    scene.add_geometry(_textured_box([1, 2, 3], 0), node_name="body", geom_name="body")
+    moved = np.eye(4)
+    moved[:3, :3] = R
+    moved[:3, 3] = [5, 0, 0]
+    scene.add_geometry(_textured_box([1, 1, 1], 1), node_name="arm", geom_name="arm",
+                       parent_node_name="body", transform=moved)
+    scene.add_geometry(trimesh.creation.icosphere(1), node_name="head", geom_name="head")
+    source = tmp_path / "scene.glb"
+    source.write_bytes(trimesh.exchange.gltf.export_glb(scene))
+    V, F = load_mesh(source)
+    out = tmp_path / "moved.glb"
+    save_deformed(out, _moved(V), F, source)
+    V2, F2 = load_mesh(out)
+    np.testing.assert_allclose(V2, _moved(V), atol=1e-5 * np.abs(_moved(V)).max())
+    np.testing.assert_array_equal(F2, F)
+    back = trimesh.load(out)
+    textured = [g for g in back.geometry.values() if isinstance(g.visual,
+                                                                 trimesh.visual.TextureVisuals)]
+    assert len(textured) == 2 and all(g.visual.uv is not None for g in textured)
+
+
+def test_another_format_warns_what_it_drops(textured_obj, tmp_path):
+    V, F = load_mesh(textured_obj)
+    with pytest.warns(MeshFileWarning, match="UVs.*write OBJ to keep them"):
+        save_deformed(tmp_path / "moved.off", _moved(V), F, textured_obj)
+    np.testing.assert_allclose(load_mesh(tmp_path / "moved.off")[0], _moved(V))
+
+
+def test_a_plain_source_is_written_plainly_without_a_warning(tmp_path):
+    source = tmp_path / "plain.obj"
+    save_mesh(source, np.array(CUBE_V, dtype=float), [[0, 1, 2], [1, 3, 2]])
+    assert asset_contents(source) == []
+    V, F = load_mesh(source)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        save_deformed(tmp_path / "moved.ply", _moved(V), F, source)
+    np.testing.assert_array_equal(load_mesh(tmp_path / "moved.ply")[0], _moved(V))
+
+
+def test_a_result_with_another_vertex_count_is_refused(textured_obj, tmp_path):
+    V, F = load_mesh(textured_obj)
+    with pytest.raises(InputError, match="keeps the source's vertices"):
+        save_deformed(tmp_path / "moved.obj", V[:-1], F[:2], textured_obj)
+    assert not (tmp_path / "moved.obj").exists()
