@@ -10,7 +10,7 @@ the texture at its UV centroid, shaded) beside the OFF one.
 
 Usage::
 
-    python benchmarks/bench_keep_asset.py --out out/keep_asset --picture docs/images/textured_result.png
+    python benchmarks/bench_keep_asset.py --picture docs/images/textured_result.png
 """
 
 from __future__ import annotations
@@ -108,14 +108,14 @@ def main() -> None:
     out.mkdir(parents=True, exist_ok=True)
     source, target = _find(SOURCE), _find(TARGET)
     results = {ext: out / f"{SOURCE}_on_{TARGET}{ext}" for ext in (".obj", ".glb", ".off")}
-    for ext, path in results.items():
+    for path in results.values():
         done = subprocess.run([sys.executable, "-m", "cagekit.cli", "deform", source, target,
                                "-o", str(path), "--seed", "0"], capture_output=True, text=True)
         if done.returncode != 0:
             raise SystemExit(done.stderr)
         said = [line for line in done.stderr.splitlines() if "not kept" in line]
         print(f"{path.name}: {said[0] if said else 'no warning'}")
-    print(f"\n| file | vt | vn | usemtl | objects | textures found |")
+    print("\n| file | vt | vn | usemtl | objects | textures found |")
     print("| --- | --- | --- | --- | --- | --- |")
     for name, path in [("source", Path(source)), *((p.name, p) for p in results.values())]:
         r = _records(path)
