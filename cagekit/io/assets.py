@@ -37,7 +37,6 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from cagekit.errors import InputError, MeshFileError, MeshFileWarning
-from cagekit.geometry.normal_transport import transported_normals
 from cagekit.io.files import atomic_output, extension, read_bytes, read_text
 from cagekit.io.meshes import (
     load_mesh,
@@ -322,6 +321,8 @@ def _corner(token, seen_v, seen_n, number, source):
 def _obj_carried_normals(V0, V1, corners, normals):
     """New face tokens' normal indices (one per corner, -1 for none) and the carried
     normals, one per ``(vertex, normal)`` pair in order of first use."""
+    from cagekit.geometry.normal_transport import transported_normals  # igl, scipy: lazily
+
     pair_of, tri, tri_normals, tri_groups, per_face = {}, [], [], [], []
     for face in corners:
         ids = []
@@ -413,6 +414,8 @@ def _ply_vertex_normals(V0, V1, F0, data, fmt, elements, pos, source):
     columns, _, _ = _ply_vertex(data, fmt, elements, pos)
     if not all(k in columns for k in ("nx", "ny", "nz")):
         return None
+    from cagekit.geometry.normal_transport import transported_normals
+
     N = np.column_stack([np.asarray(columns[k], dtype=np.float64) for k in ("nx", "ny", "nz")])
     return transported_normals(V0, V1, F0, N[F0], F0)
 
@@ -458,6 +461,8 @@ def _ply_binary_with(data, pos, fmt, elements, V, normals):
 
 def _write_glb(path, V, V0, F0, source):
     import trimesh
+
+    from cagekit.geometry.normal_transport import transported_normals
 
     scene = trimesh.load(os.fspath(source), process=False, maintain_order=True, force="scene")
     offset, instanced = 0, _instanced(scene)
