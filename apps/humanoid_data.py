@@ -48,7 +48,7 @@ import numpy as np
 
 from cagekit import io
 from cagekit.cli.common import Command, FiniteFloatRange, debug_option, emit_json, json_option
-from cagekit.datasets import characters, humanoid
+from cagekit.datasets import characters, humanoid, named_poses
 from cagekit.errors import InputError
 from cagekit.io.files import atomic_output, output_folder
 from cagekit.io.landmarks import save_landmarks, save_picked
@@ -56,8 +56,9 @@ from cagekit.io.landmarks import save_landmarks, save_picked
 __all__ = ["REVERSE_POSES", "TEST_POSE_SEED", "choose_characters", "landmark_names",
            "landmarks_of", "posed_cage", "template_cage", "write"]
 
-#: seed of the first test pose; training poses use seeds below it
-TEST_POSE_SEED = 100_000
+#: seed of the first test pose; training poses use seeds below it (the test poses are
+#: named poses of ``cagekit transfer``: humanoid:pose_000, ...)
+TEST_POSE_SEED = named_poses.TEST_POSE_SEED
 #: the reverse examples' poses (rest-like, :func:`cagekit.datasets.characters.rest_pose`)
 REVERSE_POSES = ({"arms": -30}, {"arms": 20, "legs": 5},
                  {"arms": -15, "legs": 10, "turn": -8}, {"arms": 35, "elbows": 20},
@@ -252,7 +253,7 @@ def write(out_dir, *, poses: int = 20, train_poses: int = 1000, seed: int = 0,
                "train_poses": train_poses, "landmarks": len(names), "cage": cage,
                "template_vertices": len(template.vertices),
                "cage_vertices": len(cage_v), "cage_faces": len(cage_f), "seed": seed,
-               "truth": truth}
+               "truth": truth, "resolution": resolution}
     with atomic_output(out / "manifest.json") as tmp, open(tmp, "w") as fh:
         json.dump(summary, fh, indent=2)
         fh.write("\n")

@@ -64,6 +64,10 @@ AUTO = "auto"
                    "cages of up to 5,000 vertices).")
 @click.option("--grid", "grid_path", type=click.Path(dir_okay=False), default=None,
               help="Also write a PNG: template poses above, transferred character below.")
+@click.option("--match-shape", is_flag=True,
+              help="A POSE that is another mesh than the template's (other vertex count "
+                   "or faces) is matched by its shape (Chamfer distance, cagekit.deform; "
+                   "less exact) instead of refused.")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0))
 @json_option
 @debug_option
@@ -71,7 +75,8 @@ AUTO = "auto"
 def transfer(ctx: click.Context, template: str, template_cage: str, template_landmarks: str,
              character: str, character_landmarks: str, poses: tuple[str, ...], out_dir: str,
              rule: str, root: str, model_path: str | None, align: str, coords: str,
-             cage_faces: int, grid_path: str | None, seed: int, as_json: bool) -> None:
+             cage_faces: int, grid_path: str | None, match_shape: bool, seed: int,
+             as_json: bool) -> None:
     """Transfer the TEMPLATE's POSES to a novel CHARACTER given matching landmarks.
 
     TEMPLATE and CHARACTER are meshes in rest pose (any mesh format cagekit reads, any
@@ -79,7 +84,10 @@ def transfer(ctx: click.Context, template: str, template_cage: str, template_lan
     one.
     The landmark files (.picked with 9 or 10 columns, .json or .csv) name points on each,
     matched by label; labels in one file only are reported. POSE is a mesh of the
-    template in a new pose, or a folder of them. The character's cage is checked
+    template in a new pose (its vertices moved: same count and order, as a rig exports
+    it), a folder of them, or a named pose of the humanoid template of python -m
+    apps.humanoid_data (humanoid:t_pose, a_pose, arms_up, relaxed, arms_down,
+    humanoid:pose_000 ...). The character's cage is checked
     (closed, no self-intersection, every vertex inside); when no valid cage can be
     fitted the command exits with status 2 and writes nothing.
 
@@ -102,6 +110,8 @@ def transfer(ctx: click.Context, template: str, template_cage: str, template_lan
                    character_landmarks, pose_paths, model_path, cage_faces, seed)
     t_loaded = time.perf_counter()
     (Vt, Ft), (cage_v, cage_f), marks_t, (Vc, Fc), marks_c, pose_meshes, model = loaded
+    if model is None and not match_shape:
+        _check_poses_correspond(pose_paths, pose_meshes, (Vt, Ft), template)
     try:
         char = dt.fit_character(Vt, cage_v, cage_f, marks_t, Vc, Fc, marks_c, align=align,
                                 coords=coords, template_name=template_landmarks,
@@ -117,29 +127,53 @@ def transfer(ctx: click.Context, template: str, template_cage: str, template_lan
     results = _transfer_poses(char, (Vt, Ft), (cage_v, cage_f), pose_paths, pose_meshes, model,
                               rule, root, seed)
     rows = _write(out, char, pose_paths, names, results, pose_meshes, grid_path)
+    left_out = _grid(grid_path, (Vt, Ft), char, pose_meshes, results, names)
     seconds = {"load": t_loaded - start, "fit": t_fitted - t_loaded,
                "transfer": time.perf_counter() - t_fitted}
     report = _report(out, char, rows, seconds, start, template, template_cage, character,
-                     model, rule, root, align, coords, grid_path)
+                     model, rule, root, align, coords, grid_path, left_out)
     if as_json:
         emit_json(report)
     else:
         fit = char.fit
-        mended = fit.checks["mended"]
         click.echo(f"wrote {len(rows)} pose(s), character_cage.obj and report.json to "
                    f"{out}; character cage valid ({fit.rounds} enclosure round(s)), "
                    f"largest landmark error {fit.landmark_errors.max():.3g}"
-                   + (f", {100 * mended:.1f}% of the vertices bound along the mesh"
-                      if mended else ""))
+                   + _binding_summary(fit.checks["coupled"], fit.checks["mended"])
+                   + (f"; the grid leaves out {len(left_out)} of {len(rows)} poses "
+                      f"({', '.join(left_out)})" if left_out else ""))
+
+
+def _binding_summary(coupled: float, mended: float) -> str:
+    """The shares bound through folds (with the refusal's threshold) and mended along the
+    mesh, one word each; empty when neither.
+
+    Examples
+    --------
+    >>> _binding_summary(0.082, 0.233)
+    '; vertices bound through folds 8.2% (refused above 20%), mended along the mesh 23.3%'
+    >>> _binding_summary(0.0, 0.0)
+    ''
+    """
+    from cagekit.transfer.surface_binding import MAX_COUPLED
+
+    if not (coupled or mended):
+        return ""
+    return (f"; vertices bound through folds {100 * coupled:.1f}% (refused above "
+            f"{100 * MAX_COUPLED:.0f}%), mended along the mesh {100 * mended:.1f}%")
 
 
 def _pose_paths(poses) -> list[Path]:
+    from cagekit.datasets.named_poses import is_named_pose, named_pose
     from cagekit_learn.data import find_meshes
 
     paths: list[Path] = []
     for given in poses:
         path = Path(given)
-        if path.is_dir():
+        if is_named_pose(given) and not path.exists():
+            named_pose(given)  # an unknown name is refused before any work
+            paths.append(path)
+        elif path.is_dir():
             found = find_meshes(path)
             if not found:
                 raise InputError("holds no mesh files", path)
@@ -150,10 +184,12 @@ def _pose_paths(poses) -> list[Path]:
 
 
 def _output_names(paths) -> list[str]:
+    from cagekit.datasets.named_poses import PREFIX
+
     names: list[str] = []
     seen: dict[str, int] = {}
     for path in paths:
-        name = f"{path.stem}.obj"
+        name = f"{path.stem.removeprefix(PREFIX)}.obj"
         if name in seen:
             raise InputError(f"two poses would both be written as {name} ({seen[name]} and "
                              f"{path}): rename one", path)
@@ -192,7 +228,7 @@ def _load(template, template_cage, template_landmarks, character, character_land
     marks_t = load_landmarks(template_landmarks)
     Vc, Fc = io.load_mesh(character)
     marks_c = load_landmarks(character_landmarks)
-    pose_meshes = [io.load_mesh(path) for path in pose_paths]
+    pose_meshes = [_load_pose(path, Vt, Ft, template) for path in pose_paths]
     if template_cage == AUTO:
         from cagekit.cage.fitting import fit_cage
 
@@ -214,6 +250,42 @@ def _load(template, template_cage, template_landmarks, character, character_land
         model = load_model(model_path)[0]
         check_model(model, Vt, cage_v, model_path)
     return ((Vt, Ft), (cage_v, cage_f), marks_t, (Vc, Fc), marks_c, pose_meshes, model)
+
+
+def _load_pose(path, Vt, Ft, template):
+    """A pose: its mesh file, or the humanoid template in a named pose (at the resolution
+    of the manifest.json beside TEMPLATE, written by apps.humanoid_data; else 1)."""
+    from cagekit import io
+    from cagekit.datasets.named_poses import is_named_pose, posed_template
+
+    if not is_named_pose(str(path)) or path.exists():
+        return io.load_mesh(path)
+    manifest = Path(template).with_name("manifest.json")
+    resolution = 1.0
+    if manifest.is_file():
+        try:
+            resolution = float(json.loads(manifest.read_text()).get("resolution", 1.0))
+        except (ValueError, TypeError, AttributeError):
+            resolution = 1.0
+    try:
+        return posed_template(str(path), Vt, Ft, resolution=resolution), Ft
+    except InputError as exc:
+        raise InputError(exc.problem, template) from None
+
+
+def _check_poses_correspond(pose_paths, pose_meshes, template_mesh, template) -> None:
+    """Refuse a pose that is not the template's mesh moved (other vertex count or faces)."""
+    from cagekit.transfer.character import corresponds
+
+    Vt, Ft = template_mesh
+    for path, (Vp, Fp) in zip(pose_paths, pose_meshes):
+        if not corresponds(Vt, Ft, Vp, Fp):
+            what = (f"has {len(Vp)} vertices, the template {len(Vt)}" if len(Vp) != len(Vt)
+                    else "has the template's vertex count but other faces")
+            raise InputError(f"{what} ({template}): a pose must be the template's mesh "
+                             "moved (same vertices, same order, as a rig exports it); "
+                             "--match-shape matches another mesh by its shape instead",
+                             path)
 
 
 def _transfer_poses(char, template, template_cage, pose_paths, pose_meshes, model, rule,
@@ -247,7 +319,6 @@ def _write(out, char, pose_paths, names, results, pose_meshes, grid_path):
     """The transferred poses, the character's cage and the picture; a row per pose."""
     from cagekit import io
     from cagekit.io.files import output_folder
-    from cagekit.transfer.character import render_grid
 
     with output_folder(out):
         rows = []
@@ -255,18 +326,26 @@ def _write(out, char, pose_paths, names, results, pose_meshes, grid_path):
             io.save_mesh(out / name, X, char.faces)
             rows.append({"pose": str(path), "output": str(out / name), "seconds": seconds})
         io.save_mesh(out / "character_cage.obj", char.cage_v, char.cage_f)
-        if grid_path is not None:
-            transferred = [(X, char.faces) for X, _ in results[:8]]
-            render_grid(grid_path, [pose_meshes[:8], transferred],
-                        titles=[Path(p).stem for p in pose_paths[:8]],
-                        labels=["template", "transferred character"])
     return rows
 
 
+def _grid(grid_path, template, char, pose_meshes, results, names) -> list[str]:
+    """Draw the picture (rest poses first) when asked; the names of the poses it leaves
+    out."""
+    from cagekit.transfer.grid import transfer_grid
+
+    if grid_path is None:
+        return []
+    return transfer_grid(grid_path, template, (char.vertices, char.faces), pose_meshes,
+                         [(X, char.faces) for X, _ in results],
+                         [Path(name).stem for name in names])
+
+
 def _report(out, char, rows, seconds, start, template, template_cage, character, model,
-            rule, root, align, coords, grid_path) -> dict:
+            rule, root, align, coords, grid_path, left_out=()) -> dict:
     """Write report.json and return it."""
     from cagekit.io.files import atomic_output
+    from cagekit.transfer.surface_binding import MAX_COUPLED
 
     fit = char.fit
     report = {
@@ -282,11 +361,12 @@ def _report(out, char, rows, seconds, start, template, template_cage, character,
             "contacts": fit.contacts, "seconds": fit.seconds,
             "alignment": fit.alignment.to_dict()},
         "landmark_errors": dict(zip(char.match.labels, fit.landmark_errors.tolist())),
-        "character_cage": dict(fit.checks),
+        "character_cage": {**fit.checks, "coupled_limit": MAX_COUPLED},
         "poses": rows,
         "seconds": {**seconds, "total": time.perf_counter() - start},
         "outputs": {"cage": str(out / "character_cage.obj"),
                     "report": str(out / "report.json"), "grid": grid_path},
+        "grid_left_out": list(left_out),
     }
     with atomic_output(out / "report.json") as tmp, open(tmp, "w") as fh:
         json.dump(report, fh, indent=2, allow_nan=False)

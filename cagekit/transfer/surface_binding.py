@@ -58,7 +58,9 @@ CONFIDENCE_SCALE = 0.3
 DATA_WEIGHT = 100.0
 #: share of points with a negative mass above 1 above which :func:`check_coupling` warns
 WARN_COUPLED = 0.001
-#: share above which it refuses: most of the mesh is bound through folds
+#: share of points bound through folds (:func:`coupled_share`, the report's ``coupled``)
+#: above which it refuses; the share mended along the mesh (``mended``: negative mass above
+#: :data:`FREE_MASS`) is larger and has no limit
 MAX_COUPLED = 0.2
 #: disagreement with the cage's result, as a share of the moved cage's size (the RMS
 #: distance of its vertices to their centroid), at which :meth:`SurfaceBinding.deform`
@@ -285,7 +287,8 @@ def check_coupling(binding: SurfaceBinding) -> float:
             "limbs apart from its body")
     if share > WARN_COUPLED:
         warnings.warn(CagekitWarning(
-            f"{100 * share:.1f}% of the character's vertices lie where its cage folds "
-            "between touching parts (limbs against the body): bound along the mesh "
-            "instead; expect stretched cloth or skin where they touched"), stacklevel=2)
+            f"{100 * share:.1f}% of the character's vertices are bound through folds of "
+            f"its cage, where limbs touch the body (refused above {100 * MAX_COUPLED:.0f}%): "
+            "they and their neighbours are mended along the mesh; expect stretched cloth "
+            "or skin where they touched"), stacklevel=2)
     return share

@@ -176,3 +176,14 @@ def test_check_coupling_is_silent_warns_or_refuses_by_the_share():
         check_coupling(_binding(0.05))
     with pytest.raises(CageFitError, match="folds so thinly between touching parts"):
         check_coupling(_binding(MAX_COUPLED + 0.01))
+
+
+def test_the_warning_names_one_quantity_by_one_word_and_states_its_limit():
+    # issue 33: the share bound through folds (refused above MAX_COUPLED) was called
+    # "bound along the mesh", the words of the other share (mended)
+    with pytest.warns(CagekitWarning) as caught:
+        check_coupling(_binding(0.082))
+    message = str(caught[0].message)
+    assert "8.2% of the character's vertices are bound through folds" in message
+    assert f"refused above {100 * MAX_COUPLED:.0f}%" in message
+    assert "bound along" not in message and "mended along the mesh" in message

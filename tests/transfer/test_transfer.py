@@ -59,6 +59,7 @@ def test_end_to_end_transfer_beats_the_rest_pose(data, tmp_path):
     assert cage["valid"] and cage["volume"] > 0 and cage["self_intersecting_faces"] == 0
     assert cage["outside"] == 0 and cage["problems"] == []
     assert cage["coupled"] == 0.0  # a body in the template's rest pose: nothing touches
+    assert cage["coupled_limit"] == 0.2 and report["grid_left_out"] == []
     assert fit["rounds"] >= 0
     saved = json.loads((tmp_path / "res" / "report.json").read_text())
     assert saved["mode"] == "classical" and saved["rule"] == "pose"
@@ -575,3 +576,65 @@ def test_the_transfer_moves_loose_pieces_back_with_the_refinement_only(data, mon
                                atol=1e-9)
     dt.transfer(char, cage[0], "pose", refine=False)
     assert calls == [len(Vc)]  # not without the refinement
+
+
+def test_a_named_pose_is_the_humanoid_template_in_that_pose(data, tmp_path):
+    # issue 33: an artist names a pose of the humanoid data instead of giving a file
+    from cagekit.datasets import humanoid
+    from cagekit.datasets.named_poses import named_pose
+
+    out, _ = data
+    copy = tmp_path / "file_001.obj"
+    copy.write_bytes((out / "poses" / "pose_001.obj").read_bytes())
+    result = _run([*_inputs(out), copy, "humanoid:pose_001", "humanoid:a_pose", "-o",
+                   tmp_path / "res", "--json"])
+    assert result.exit_code == 0, result.output
+    report = json.loads(result.stdout)
+    assert [row["output"] for row in report["poses"]] == [
+        str(tmp_path / "res" / f"{n}.obj") for n in ("file_001", "pose_001", "a_pose")]
+    X_file, _ = io.load_mesh(tmp_path / "res" / "file_001.obj")
+    X_named, _ = io.load_mesh(tmp_path / "res" / "pose_001.obj")
+    Vc, _ = io.load_mesh(out / "characters" / "stocky.obj")
+    height = np.ptp(Vc[:, 1])
+    np.testing.assert_allclose(X_named, X_file, atol=1e-6 * height)  # the same pose
+    X, _ = io.load_mesh(tmp_path / "res" / "a_pose.obj")
+    truth = humanoid.rig("stocky", resolution=0.5).pose(named_pose("a_pose"))
+    rest = np.linalg.norm(Vc - truth, axis=1).mean()
+    assert np.linalg.norm(X - truth, axis=1).mean() < rest / 3
+
+
+def test_an_unknown_named_pose_is_one_line_listing_the_names(data, tmp_path):
+    out, _ = data
+    result = _run([*_inputs(out), "humanoid:b_pose", "-o", tmp_path / "res"])
+    assert result.exit_code == 2
+    assert "unknown pose humanoid:b_pose" in result.stderr and "a_pose" in result.stderr
+    assert not (tmp_path / "res").exists()
+
+
+def test_a_named_pose_needs_the_humanoid_template(data, tmp_path):
+    out, _ = data
+    stem = out / "reverse" / "pose_00"  # the template, but not in its rest pose
+    result = _run([f"{stem}.obj", f"{stem}_cage.obj", f"{stem}_landmarks.json",
+                   *_inputs(out)[3:], "humanoid:a_pose", "-o", tmp_path / "res"])
+    assert result.exit_code == 2
+    assert "moves the humanoid template" in result.stderr and f"{stem}.obj" in result.stderr
+    assert not (tmp_path / "res").exists()
+
+
+def test_a_pose_of_another_mesh_is_refused_unless_matched_by_shape(data, tmp_path):
+    out, _ = data
+    V, F = io.load_mesh(out / "poses" / "pose_000.obj")
+    keep = np.unique(F[: len(F) // 2])
+    index = np.full(len(V), -1)
+    index[keep] = np.arange(len(keep))
+    other = tmp_path / "other.obj"
+    io.save_mesh(other, V[keep], index[F[: len(F) // 2]])
+    result = _run([*_inputs(out), other, "-o", tmp_path / "res"])
+    assert result.exit_code == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and str(other) in lines[0], lines
+    assert f"has {len(keep)} vertices, the template {len(V)}" in lines[0]
+    assert "--match-shape" in lines[0] and not (tmp_path / "res").exists()
+    result = _run([*_inputs(out), other, "-o", tmp_path / "res", "--match-shape"])
+    assert result.exit_code == 0, result.output
+    assert (tmp_path / "res" / "other.obj").exists()
