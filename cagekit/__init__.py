@@ -44,7 +44,7 @@ _EXPORTS = {
     "InputError": "cagekit.errors", "MeshFileError": "cagekit.errors",
     "LandmarkFileError": "cagekit.errors", "CageError": "cagekit.errors",
     "CagekitWarning": "cagekit.errors", "MeshFileWarning": "cagekit.errors",
-    "OutsideCageWarning": "cagekit.errors",
+    "OutsideCageWarning": "cagekit.errors", "OutsideCageError": "cagekit.errors",
 }
 #: submodules reachable as attributes (``cagekit.io.load_mesh``) without importing them first
 _SUBMODULES = ("batch", "cage", "coords", "datasets", "deformation", "errors", "geometry",

@@ -14,7 +14,7 @@ import os
 from collections.abc import Iterator
 
 __all__ = ["InputError", "MeshFileError", "LandmarkFileError", "CageError", "CageFitError",
-           "CagekitWarning",
+           "OutsideCageError", "CagekitWarning",
            "MeshFileWarning", "OutsideCageWarning"]  # and exception_chain, a helper of the
 #  command line and the optimiser that `import cagekit` does not export
 
@@ -66,6 +66,11 @@ class CageFitError(InputError):
     cage: tuple | None = None
     missed: list[str] | None = None
     outside_near: dict[str, int] | None = None
+
+
+class OutsideCageError(InputError):
+    """Most of a shape lies outside the cage given for it: a cage in other units or placed
+    elsewhere, most likely (the message says which, when the sizes or centres tell)."""
 
 
 class CagekitWarning(UserWarning):

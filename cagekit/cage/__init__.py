@@ -3,6 +3,8 @@
 - :mod:`~cagekit.cage.topology`: edges and components of a triangle mesh;
 - :mod:`~cagekit.cage.checks`: :func:`check_cage` (the gate every cage passes),
   self-intersections, winding numbers and the enclosure test;
+- :mod:`~cagekit.cage.placement`: why a shape lies outside its cage (other units, another
+  origin), for the messages;
 - :mod:`~cagekit.cage.shapes`: primitive cages (:func:`~cagekit.cage.shapes.box_cage`);
 - :mod:`~cagekit.cage.fitting`: :func:`~cagekit.cage.fitting.fit_cage` (``cagekit fit-cage``);
 - :mod:`~cagekit.cage.contact`: an IPC barrier keeping a moving cage free of self-contact.

@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import time
+import warnings
 
 import click
 
 from cagekit.cli.common import (
     COORDINATE_METHODS,
+    allow_outside_option,
     bind_with_progress,
     check_output,
+    check_outside,
     debug_option,
     emit_json,
     json_option,
@@ -29,11 +32,12 @@ from cagekit.errors import InputError
               show_default=True,
               help="Cage coordinates: mean value (affine-invariant) or Green (exact for "
                    "similarities; details keep their proportions under stretch).")
+@allow_outside_option
 @json_option
 @debug_option
 @click.pass_context
 def apply(ctx: click.Context, mesh: str, cage: str, deformed_cage: str, out: str, coords: str,
-          as_json: bool) -> None:
+          allow_outside: bool, as_json: bool) -> None:
     """Deform MESH by moving its CAGE to DEFORMED_CAGE.
 
     MESH is a mesh or a point cloud; CAGE a closed triangle mesh around it; DEFORMED_CAGE
@@ -41,14 +45,14 @@ def apply(ctx: click.Context, mesh: str, cage: str, deformed_cage: str, out: str
     be CAGE's). The points are bound once to CAGE with generalised barycentric
     coordinates and mapped through DEFORMED_CAGE; the result, with MESH's faces, is
     written to OUT. A DEFORMED_CAGE that intersects itself is used, with a warning: the
-    motion folds the shape.
+    motion folds the shape. A MESH mostly (more than half) outside CAGE is refused, with
+    the likely cause (a cage in other units, another origin), unless --allow-outside.
 
     \b
     Example:
       cagekit apply shape.obj cage.obj cage_deformed.obj -o deformed.obj
     """
     from cagekit.cage import warn_self_intersecting
-    from cagekit.coords.binding import warn_outside
 
     start_command(ctx)
     check_output(out, (mesh, cage, deformed_cage))
@@ -58,13 +62,20 @@ def apply(ctx: click.Context, mesh: str, cage: str, deformed_cage: str, out: str
     seconds["load"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    deform = bind_with_progress(V, CV, faces, coords)
-    seconds["bind"] = time.perf_counter() - t0
+    with warnings.catch_warnings(record=True) as held:  # shown once binding succeeded, so
+        warnings.simplefilter("always")  # that bad input stays one line
+        outside = check_outside(V, CV, faces, shape=mesh, cage=cage, allow=allow_outside)
+    seconds["check"] = time.perf_counter() - t0  # before binding: a refusal costs nothing
 
     t0 = time.perf_counter()
-    outside = warn_outside(V, CV, faces, shape=mesh, cage=cage)
+    deform = bind_with_progress(V, CV, faces, coords)
+    seconds["bind"] = time.perf_counter() - t0
+    for w in held:
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+
+    t0 = time.perf_counter()
     warn_self_intersecting(DV, faces, name=deformed_cage)  # the motion folds the shape
-    seconds["check"] = time.perf_counter() - t0
+    seconds["check"] += time.perf_counter() - t0
 
     t0 = time.perf_counter()
     out_v = deform(DV)
@@ -86,7 +97,7 @@ def _load(mesh, cage, deformed_cage, out):
     from cagekit.geometry import face_areas
 
     V, F = io.load_shape(mesh)
-    write = shape_writer(out, has_faces=len(F) > 0)
+    write = shape_writer(out, has_faces=len(F) > 0, source=mesh)
     CV, CF = io.load_mesh(cage)
     try:
         face_areas(CV, CF)  # areas that overflow would be reported as "zero area" below
@@ -95,9 +106,9 @@ def _load(mesh, cage, deformed_cage, out):
     faces = check_cage(CV, CF, name=cage)  # closed, 2-manifold, oriented (flipped outward)
     DV, DF = io.load_shape(deformed_cage)
     if len(DV) != len(CV):
-        raise InputError(f"{deformed_cage} has {len(DV)} vertices but {cage} has "
-                         f"{len(CV)}: the deformed cage must have the cage's vertices "
-                         "(same count and order)")
+        raise InputError(f"has {len(DV)} vertices but {cage} (CAGE) has {len(CV)}: the "
+                         "deformed cage must have the cage's vertices (same count and "
+                         "order)", deformed_cage)
     if len(DF) and (DF.shape != CF.shape or not np.array_equal(DF, CF)):
         raise InputError(f"its faces differ from those of {cage}; the deformed cage must "
                          "be the same mesh with moved vertices", deformed_cage)

@@ -34,6 +34,7 @@ import contextlib
 import json
 import math
 import os
+import shlex
 import signal
 import sys
 import traceback
@@ -52,8 +53,9 @@ if TYPE_CHECKING:  # the command line imports no numpy at start-up
 
 __all__ = ["BIND_CHUNK", "COORDINATE_METHODS", "DEFORM_COORDINATE_METHODS", "FIT_METHODS",
            "TEMPLATE_FACES", "MIN_FACES", "MAX_FACES", "Command",
-           "FiniteFloatRange", "Group", "Interrupted", "OneLineErrors", "bar_callback",
-           "bind_with_progress", "check_output", "debug_option", "emit_json", "json_option",
+           "FiniteFloatRange", "Group", "Interrupted", "OneLineErrors", "OUTSIDE_LIMIT",
+           "allow_outside_option", "bar_callback", "bind_with_progress", "check_outside",
+           "check_output", "debug_option", "emit_json", "json_option",
            "one_line", "preview_up_option", "progress_bar", "progress_enabled", "same_file",
            "shape_writer", "start_command"]
 
@@ -71,6 +73,10 @@ TEMPLATE_FACES = 80
 #: the face budget's range (:data:`cagekit.cage.fitting.MIN_FACES`,
 #: :data:`~cagekit.cage.fitting.MAX_FACES`)
 MIN_FACES, MAX_FACES = 4, 100_000
+#: share of a shape's points outside the cage given for it above which a command refuses
+#: the pair (a cage in other units or placed elsewhere, most likely); ``--allow-outside``
+#: deforms it anyway, with the warning
+OUTSIDE_LIMIT = 0.5
 
 
 def one_line(text: str) -> str:
@@ -109,6 +115,7 @@ class OneLineErrors:
         (interrupted)."""
         args = list(sys.argv[1:] if args is None else args)
         _CURRENT.clear()
+        _ARGUMENTS.clear()
         debug = _debug_requested(args)
         prog = prog_name or "cagekit"
         _report_native_crashes()
@@ -143,19 +150,21 @@ class OneLineErrors:
         except Exception as exc:  # noqa: BLE001 - classified: one line each
             if _interrupt_in_chain(exc):  # raised while an interrupt unwound (or wrapping it)
                 return 130, exc, "interrupted"
-            return _classify(exc, debug, prog)
+            return _classify(exc, debug, prog, args)
         return (rv if isinstance(rv, int) else 0), None, None
 
 
-def _classify(exc: Exception, debug: bool, prog: str) -> tuple[int, Exception, str]:
-    """(exit status, exc, message) of a command's exception."""
+def _classify(exc: Exception, debug: bool, prog: str,
+              args: Sequence[str] = ()) -> tuple[int, Exception, str]:
+    """(exit status, exc, message) of a command's exception (``args``: the command line)."""
     if isinstance(exc, click.UsageError):
         where = exc.ctx.command_path if exc.ctx is not None else prog
-        return exc.exit_code, exc, f"{exc.format_message()} (see '{where} --help')"
+        return (exc.exit_code, exc,
+                f"{exc.format_message()}{_output_hint(exc, args)} (see '{where} --help')")
     if isinstance(exc, click.ClickException):
         return exc.exit_code, exc, exc.format_message()
     if isinstance(exc, InputError):
-        return 2, exc, str(exc)
+        return 2, exc, _naming_the_argument(exc)
     if isinstance(exc, OSError):
         return 1, exc, _os_error_message(exc)
     if isinstance(exc, MemoryError):
@@ -164,6 +173,43 @@ def _classify(exc: Exception, debug: bool, prog: str) -> tuple[int, Exception, s
     if not debug:
         message += " (run with --debug for the traceback)"
     return 1, exc, message
+
+
+def _output_hint(exc: click.UsageError, args: Sequence[str]) -> str:
+    """`` Did you mean `-o out.obj`?`` when ``-o`` is missing and its value seems given as
+    a positional argument (``cagekit deform a.obj b.obj out.obj``), else ``""``."""
+    param = getattr(exc, "param", None)
+    if (exc.ctx is None or not isinstance(exc, click.MissingParameter)
+            or not isinstance(param, click.Option) or "-o" not in param.opts):
+        return ""
+    stray = _stray_output(exc.ctx, _own_args(exc.ctx, args))
+    return f" Did you mean `-o {shlex.quote(stray)}`?" if stray else ""
+
+
+def _own_args(ctx: click.Context, args: Sequence[str]) -> list[str]:
+    """The words of the command line that ``ctx``'s command parsed (those after its name
+    when it is a subcommand)."""
+    if ctx.parent is None:
+        return list(args)
+    words = list(args)
+    return words[words.index(ctx.info_name) + 1:] if ctx.info_name in words else []
+
+
+def _stray_output(ctx: click.Context, args: list[str]) -> str | None:
+    """The last positional word the command has no argument for; or, after a variadic
+    argument (``MESH...``), the last of its values when no such file exists."""
+    try:
+        values, extra, _ = ctx.command.make_parser(ctx).parse_args(args)
+    except click.UsageError:
+        return None
+    if extra:
+        return extra[-1]
+    arguments = [p for p in ctx.command.params if isinstance(p, click.Argument)]
+    if arguments and arguments[-1].nargs == -1:
+        given: Sequence[str] = values.get(arguments[-1].name or "") or ()
+        if len(given) > 1 and not os.path.exists(given[-1]):
+            return given[-1]
+    return None
 
 
 def _interrupt_in_chain(exc: BaseException) -> bool:
@@ -283,6 +329,8 @@ def _os_error_message(exc: OSError) -> str:
 
 #: the running command's name, for error lines ("cagekit apply: error: ...")
 _CURRENT: dict[str, str] = {}
+#: the running command's positional arguments: file given -> the arguments it was given as
+_ARGUMENTS: dict[str, list[str]] = {}
 #: the exit hook of :func:`_ignore_sigint_at_exit`, once registered
 _EXIT_HOOK: list = []
 
@@ -314,7 +362,43 @@ def start_command(ctx: click.Context) -> None:
     from cagekit._numba_setup import configure
 
     _CURRENT["command"] = ctx.command_path
+    _ARGUMENTS.clear()
+    _ARGUMENTS.update(_positional_files(ctx))
     configure()
+
+
+def _positional_files(ctx: click.Context) -> dict[str, list[str]]:
+    """Each value of the command's positional arguments -> the arguments it was given as,
+    ``"CAGE (2nd argument)"`` (a variadic argument's values each by their position)."""
+    found: dict[str, list[str]] = {}
+    position = 0
+    for param in ctx.command.params:
+        if not isinstance(param, click.Argument):
+            continue
+        value = ctx.params.get(param.name or "")
+        values = value if isinstance(value, (tuple, list)) else (value,)
+        name = (param.metavar or (param.name or "").upper()).rstrip(".")
+        for item in values:
+            position += 1
+            if isinstance(item, str):
+                found.setdefault(item, []).append(f"{name} ({_ordinal(position)} argument)")
+    return found
+
+
+def _ordinal(n: int) -> str:
+    """``1st``, ``2nd``, ``3rd``, ``4th``, ... ``11th``, ``21st``."""
+    suffix = "th" if 10 <= n % 100 <= 20 else {1: "st", 2: "nd", 3: "rd"}.get(n % 10, "th")
+    return f"{n}{suffix}"
+
+
+def _naming_the_argument(exc: InputError) -> str:
+    """The error line, prefixed with the positional argument(s) its file was given as:
+    ``CAGE (2nd argument) cage.obj: not closed``."""
+    if exc.path is None:
+        return str(exc)
+    labels = _ARGUMENTS.get(exc.path) or next(
+        (names for given, names in _ARGUMENTS.items() if same_file(given, exc.path)), None)
+    return f"{' and '.join(labels)} {exc}" if labels else str(exc)
 
 
 def same_file(a: str, b: str) -> bool:
@@ -346,13 +430,16 @@ def check_output(out: str, inputs: Iterable[str | None],
                              f"use one of {', '.join(sorted(extensions))}", out)
 
 
-def shape_writer(out: str, has_faces: bool) -> Callable[[str, ArrayLike, ArrayLike], None]:
+def shape_writer(out: str, has_faces: bool,
+                 source: str | None = None) -> Callable[[str, ArrayLike, ArrayLike], None]:
     """The :mod:`cagekit.io` function that writes ``out``, checked before any work.
 
     A mesh goes to ``save_mesh`` when the extension is a mesh format, else to
     ``save_points`` (its vertices only) when it is a point-cloud format (``.xyz``,
     ``.npy``...); a point cloud goes to ``save_points``. Anything else is an InputError.
-    Returns ``writer(path, V, F)``.
+    With ``source`` (the mesh file whose vertices the result moves), a mesh goes to
+    :func:`cagekit.io.save_deformed`, which keeps the source's UVs, materials, groups,
+    colours and normals where the output's format can. Returns ``writer(path, V, F)``.
     """
     from cagekit import io
 
@@ -360,6 +447,8 @@ def shape_writer(out: str, has_faces: bool) -> Callable[[str, ArrayLike, ArrayLi
     mesh_exts = set(io.SUPPORTED_MESH_EXTENSIONS) - {".gltf"}  # save_mesh writes no GLTF
     point_exts = set(io.SUPPORTED_POINT_EXTENSIONS)
     if has_faces and ext in mesh_exts:
+        if source is not None:
+            return lambda path, V, F: io.save_deformed(path, V, F, source)
         return io.save_mesh
     if ext in point_exts:
         return lambda path, V, F: io.save_points(path, V)
@@ -392,6 +481,27 @@ def bind_with_progress(points: Vertices, cage_v: Vertices, cage_f: Faces,
     return lambda new_v: np.concatenate([b.deform(new_v) for b in bindings], axis=0)
 
 
+def check_outside(points: Vertices, cage_v: Vertices, cage_f: Faces, *, shape: str,
+                  cage: str, allow: bool) -> float:
+    """The share of ``points`` outside a checked cage, refused above :data:`OUTSIDE_LIMIT`.
+
+    :func:`cagekit.coords.binding.warn_outside` with the command line's rule: a warning
+    for a few points outside; more than :data:`OUTSIDE_LIMIT` of them is an
+    :class:`~cagekit.errors.OutsideCageError` (exit 2) that gives the likely cause (units,
+    origin), unless ``allow`` (``--allow-outside``). ``shape`` and ``cage`` are the file
+    names.
+    """
+    from cagekit.coords.binding import warn_outside
+    from cagekit.errors import OutsideCageError
+
+    try:
+        return warn_outside(points, cage_v, cage_f, shape=shape, cage=cage,
+                            refuse_above=1.0 if allow else OUTSIDE_LIMIT)
+    except OutsideCageError as exc:
+        raise OutsideCageError(f"{exc.problem}. More than {OUTSIDE_LIMIT:.0%} outside is "
+                               "refused; --allow-outside deforms it anyway", exc.path) from None
+
+
 def emit_json(obj: dict[str, Any]) -> None:
     """Print one JSON object on stdout (non-finite floats become null)."""
 
@@ -414,6 +524,12 @@ debug_option = click.option(
 preview_up_option = click.option(
     "--up", type=click.Choice(["x", "y", "z"]), default="y", show_default=True,
     help="Vertical axis of the shapes in the preview.",
+)
+allow_outside_option = click.option(
+    "--allow-outside", is_flag=True,
+    help=f"Deform the shape even when more than {OUTSIDE_LIMIT:.0%} of it lies outside the "
+         "cage (refused by default: most likely a cage in other units or placed elsewhere); "
+         "a warning says how much.",
 )
 json_option = click.option(
     "--json", "as_json", is_flag=True,

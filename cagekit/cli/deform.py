@@ -11,8 +11,10 @@ from cagekit.cli.common import (
     DEFORM_COORDINATE_METHODS,
     MAX_FACES,
     MIN_FACES,
+    allow_outside_option,
     bar_callback,
     check_output,
+    check_outside,
     debug_option,
     emit_json,
     json_option,
@@ -110,6 +112,7 @@ def _load_landmark_pair(src_path, tgt_path):
                    "trimesh's nricp_amberg (baselines).")
 @click.option("--cage", "cage_path", type=click.Path(dir_okay=False), default=None,
               help="SOURCE's cage (closed, around it); fitted with fit-cage when left out.")
+@allow_outside_option
 @click.option("--faces", default=200, show_default=True,
               type=click.IntRange(min=MIN_FACES, max=MAX_FACES),
               help="Face budget of the fitted cage (without --cage).")
@@ -158,7 +161,8 @@ def _load_landmark_pair(src_path, tgt_path):
 @debug_option
 @click.pass_context
 def deform(ctx: click.Context, source: str, target: str, out: str, method: str,
-           cage_path: str | None, faces: int, save_cage: str | None, symmetry: str,
+           cage_path: str | None, allow_outside: bool, faces: int, save_cage: str | None,
+           symmetry: str,
            landmarks: tuple[str, str] | None, weights: dict[str, float], reference: str,
            target_kind: str, coords: str, model_path: str | None, refine: bool,
            preview: str | None, up: str, seed: int, as_json: bool) -> None:
@@ -183,13 +187,16 @@ def deform(ctx: click.Context, source: str, target: str, out: str, method: str,
         raise click.UsageError("--coords green applies to the per-pair optimisation only; "
                                "a trained model binds with the coordinates it was "
                                "trained with (cagekit train --coords)")
+    if allow_outside and cage_path is None:
+        raise click.UsageError("--allow-outside applies to a given --cage")
     if model_path and target_kind != "full":
         raise click.UsageError("--target-kind partial applies to the per-pair optimisation "
                                "only, not to --model")
     from cagekit.deformation import DeformOptions
 
     model = _load_model(model_path) if model_path else None
-    src, tgt, cage, pairs, write = _load_inputs(source, target, out, cage_path, landmarks)
+    src, tgt, cage, pairs, write = _load_inputs(source, target, out, cage_path, landmarks,
+                                                allow_outside)
     options = DeformOptions(method=method, symmetry=None if symmetry == "none" else symmetry,
                             weights=weights or None, reference=reference, coords=coords,
                             faces=faces, seed=seed, check=False, target_kind=target_kind)
@@ -239,21 +246,21 @@ def _check_options(ctx, source, target, out, method, cage_path, save_cage, symme
     return outputs
 
 
-def _load_inputs(source, target, out, cage_path, landmarks):
-    """The two shapes, the checked cage (or None), the landmark pair (or None) and the
-    writer of the output (its format checked before the target is read)."""
+def _load_inputs(source, target, out, cage_path, landmarks, allow_outside=False):
+    """The two shapes, the checked cage (or None: refused when the source is mostly
+    outside it, unless ``allow_outside``), the landmark pair (or None) and the writer of
+    the output (its format checked before the target is read)."""
     from cagekit import io
     from cagekit.cage import check_cage
-    from cagekit.coords.binding import warn_outside
 
     src = io.load_shape(source)
-    write = shape_writer(out, has_faces=len(src[1]) > 0)
+    write = shape_writer(out, has_faces=len(src[1]) > 0, source=source)
     tgt = io.load_shape(target)
     cage = None
     if cage_path is not None:
         cage_v, cage_f = io.load_mesh(cage_path)
         cage = (cage_v, check_cage(cage_v, cage_f, name=cage_path))
-        warn_outside(src[0], *cage, shape=source, cage=cage_path)
+        check_outside(src[0], *cage, shape=source, cage=cage_path, allow=allow_outside)
     pairs = _load_landmark_pair(*landmarks) if landmarks else None
     return src, tgt, cage, pairs, write
 

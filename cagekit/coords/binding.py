@@ -10,9 +10,10 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from cagekit.cage import cage_encloses, check_cage, distance_in_diagonals, winding_numbers
+from cagekit.cage.placement import placement_hint
 from cagekit.coords.green import FaceTerms, green_coordinates
 from cagekit.coords.mvc import FAR_BLEND, mean_value_coordinates
-from cagekit.errors import InputError, OutsideCageWarning
+from cagekit.errors import InputError, OutsideCageError, OutsideCageWarning
 from cagekit.typed import Faces, Floats, Vertices
 
 __all__ = ["CageBinding", "GreenBinding", "bind", "warn_outside", "METHODS"]
@@ -253,13 +254,16 @@ def bind(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike, method: str = 
 
 
 def warn_outside(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike, *,
-                 shape: str = "the shape", cage: str = "the cage") -> float:
-    """Warn when points lie outside their cage, with the share outside.
+                 shape: str = "the shape", cage: str = "the cage",
+                 refuse_above: float = 1.0) -> float:
+    """Warn when points lie outside their cage, with the share outside and its likely cause.
 
     Every command that binds a shape calls it, so they all warn alike. Points outside a
     cage are extrapolated by its coordinates (MVC is defined there); those beyond
     :data:`cagekit.coords.mvc.FAR_BLEND` ``[0]`` cage diagonals follow the cage's affine
-    fit (see :mod:`cagekit.coords.mvc`) and are counted in the message.
+    fit (see :mod:`cagekit.coords.mvc`) and are counted in the message. When more than half
+    of the points are outside and the bounding boxes suggest why (a cage in other units,
+    another origin), the message says so (:func:`cagekit.cage.placement.placement_hint`).
 
     Parameters
     ----------
@@ -269,6 +273,10 @@ def warn_outside(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike, *,
         Outward faces (:func:`cagekit.check_cage`).
     shape, cage : str
         How the message names them (file names on the command line).
+    refuse_above : float, default 1.0
+        Share of points outside above which :class:`~cagekit.errors.OutsideCageError` is
+        raised instead of the warning (the command line refuses more than half, see
+        ``--allow-outside``); 1 never refuses.
 
     Returns
     -------
@@ -286,6 +294,11 @@ def warn_outside(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike, *,
     ...     share = warn_outside([[0.0, 0, 0], [5.0, 0, 0]], v, f)
     >>> share, str(caught[0].message)
     (0.5, '50% of the shape (1 of 2 points) lies outside the cage: extrapolated')
+    >>> warn_outside(9 * v, v, f, refuse_above=0.5)  # a cage a little larger than the shape
+    Traceback (most recent call last):
+    ...
+    cagekit.errors.OutsideCageError: 100% of the shape (8 of 8 points) lies outside the cage: \
+the shape is 9x the size of the cage: different units (the shape in mm, the cage in cm?)
     """
 
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
@@ -294,12 +307,17 @@ def warn_outside(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike, *,
     if not count:
         return 0.0
     share = count / len(points)
+    hint = placement_hint(points, cage_v, shape=shape, cage=cage) if share > 0.5 else None
+    text = (f"{100 * share:.3g}% of {shape} ({count:,} of {len(points):,} points) lies "
+            f"outside {cage}")
+    if share > refuse_above:
+        raise OutsideCageError(text + (f": {hint}" if hint else ""))
+    text += ": extrapolated"
     far = int((distance_in_diagonals(points[outside], cage_v) > FAR_BLEND[0]).sum())
-    percent = f"{100 * share:.3g}%"
-    text = (f"{percent} of {shape} ({count:,} of {len(points):,} points) lies outside "
-            f"{cage}: extrapolated")
     if far:
         text += (f"; {far:,} of them more than {FAR_BLEND[0]:g} cage diagonals away follow "
                  "the cage's affine fit")
+    if hint:
+        text += f"; {hint}"
     warnings.warn(OutsideCageWarning(text), stacklevel=2)
     return share

@@ -125,13 +125,18 @@ def test_apply_warns_when_cage_does_not_enclose(tmp_path):
 
     CV, CF = load_obj(CAGE)
     small = tmp_path / "small_cage.obj"
-    save_mesh(small, CV * 0.5, CF)
+    save_mesh(small, CV * 0.8, CF)  # 13% of the shape outside (more than 50% is refused)
     out = tmp_path / "out.obj"
     result = cagekit("apply", SHAPE, small, small, "-o", out, "--json")
     assert result.returncode == 0, result.stderr
     assert json.loads(result.stdout)["encloses"] is False
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and "warning" in lines[0] and "small_cage.obj" in lines[0]
+    assert "13% of" in lines[0] and lines[0].endswith("extrapolated")  # no hint
+    # half the size: all of it outside, refused, the size said
+    save_mesh(small, CV * 0.5, CF)
+    result = cagekit("apply", SHAPE, small, small, "-o", out)
+    assert_bad_input(result, "100% of", "is 1.78x the size of", "a different scale")
 
 
 def test_progress_bar_only_on_a_terminal(tmp_path):
@@ -552,3 +557,76 @@ def test_apply_warns_once_when_the_deformed_cage_intersects_itself(tmp_path):
     result = cagekit("apply", "points.xyz", "box.obj", "moved.obj", "-o", "moved.xyz",
                      cwd=tmp_path)
     assert result.returncode == 0 and result.stderr == "", result.stderr
+
+
+# ------------------------------------------------- units, argument order (issue 33, item 3)
+
+
+@pytest.fixture
+def cm_cage(tmp_path):
+    """The example's cage as made in cm, and its shape (in mm: 10x) and (shifted) beside it."""
+    from cagekit.io import save_mesh
+
+    V, F = load_obj(SHAPE)
+    CV, _ = load_obj(CAGE)
+    save_mesh(tmp_path / "shape_mm.obj", V * 10, F)
+    diagonal = np.linalg.norm(CV.max(axis=0) - CV.min(axis=0))
+    save_mesh(tmp_path / "shape_moved.obj", V + [3 * diagonal, 0, 0], F)
+    shutil.copy(CAGE, tmp_path / "cage_cm.obj")
+    return tmp_path
+
+
+def test_apply_refuses_a_cage_in_other_units_and_says_so(cm_cage):
+    result = cagekit("apply", "shape_mm.obj", "cage_cm.obj", "cage_cm.obj", "-o", "out.obj",
+                     cwd=cm_cage)
+    assert_bad_input(result, "100% of shape_mm.obj", "lies outside cage_cm.obj",
+                     "shape_mm.obj is 8.89x the size of cage_cm.obj",
+                     "different units (shape_mm.obj in mm, cage_cm.obj in cm?)",
+                     "More than 50% outside is refused; --allow-outside")
+    assert not (cm_cage / "out.obj").exists()
+
+
+def test_apply_with_allow_outside_writes_with_the_warning(cm_cage):
+    result = cagekit("apply", "shape_mm.obj", "cage_cm.obj", "cage_cm.obj", "-o", "out.obj",
+                     "--allow-outside", "--json", cwd=cm_cage)
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout)["outside"] == 1.0
+    (line,) = result.stderr.strip().splitlines()
+    assert "warning: 100% of shape_mm.obj" in line and "extrapolated" in line
+    assert "different units (shape_mm.obj in mm, cage_cm.obj in cm?)" in line
+    assert (cm_cage / "out.obj").exists()
+
+
+def test_apply_refuses_a_shape_beside_its_cage_and_says_so(cm_cage):
+    result = cagekit("apply", "shape_moved.obj", "cage_cm.obj", "cage_cm.obj", "-o",
+                     "out.obj", cwd=cm_cage)
+    assert_bad_input(result, "shape_moved.obj is offset from cage_cm.obj by 3",
+                     "cage diagonals: a different origin?")
+
+
+@pytest.mark.parametrize("args, label", [
+    (["missing.obj", CAGE, DEFORMED], "MESH (1st argument) missing.obj: "),
+    (["shape.obj", "open_cage.obj", DEFORMED], "CAGE (2nd argument) open_cage.obj: "),
+    (["shape.obj", CAGE, "open_cage.obj"], "DEFORMED_CAGE (3rd argument) open_cage.obj: "),
+    (["shape.obj", CAGE, "short_cage.xyz"], "DEFORMED_CAGE (3rd argument) short_cage.xyz: "),
+    (["shape.obj", "open_cage.obj", "open_cage.obj"],
+     "CAGE (2nd argument) and DEFORMED_CAGE (3rd argument) open_cage.obj: "),
+])
+def test_apply_errors_name_the_argument(bad_files, args, label):
+    result = cagekit("apply", *args, "-o", "x.obj", cwd=bad_files)
+    assert_bad_input(result, f"cagekit apply: error: {label}")
+
+
+def test_render_errors_name_the_argument_position(bad_files):
+    result = cagekit("render", "shape.obj", "nan.obj", "-o", "x.png", cwd=bad_files)
+    assert_bad_input(result, "error: MESH (2nd argument) nan.obj: ")
+
+
+def test_apply_suggests_o_for_an_output_given_as_a_positional(bad_files):
+    result = cagekit("apply", "shape.obj", CAGE, DEFORMED, "my out.obj", cwd=bad_files)
+    assert_bad_input(result, "Missing option '-o' / '--output'. Did you mean "
+                             "`-o 'my out.obj'`? (see 'cagekit apply --help')")
+    result = cagekit("render", "shape.obj", "shape.obj", "new.png", cwd=bad_files)
+    assert_bad_input(result, "Did you mean `-o new.png`?")
+    result = cagekit("render", "shape.obj", "shape.obj", cwd=bad_files)  # both exist
+    assert "Did you mean" not in result.stderr

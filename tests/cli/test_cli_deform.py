@@ -152,3 +152,39 @@ def test_deform_bad_inputs_exit_2_with_one_line(pair, tmp_path):
                              tmp_path / "p.jpg"), "p.jpg")
     assert not out.exists()
     assert (source.read_bytes(), target.read_bytes()) == before  # inputs untouched
+
+
+# ------------------------------------------------- units, argument order (issue 33, item 3)
+
+
+def test_deform_refuses_a_cage_in_other_units_with_the_hint(pair, tmp_path):
+    folder, source, target = pair
+    V, F = load_obj(source)
+    cage_file = tmp_path / "cage.obj"
+    assert cagekit("fit-cage", source, "-o", cage_file, "--faces", "80").returncode == 0
+    in_mm = tmp_path / "source_mm.obj"
+    save_mesh(in_mm, V * 10, F)  # the source in mm, its cage in cm
+    out = tmp_path / "out.obj"
+    result = cagekit("deform", in_mm, target, "-o", out, "--cage", cage_file)
+    assert_bad_input(result, "source_mm.obj", "cage.obj", "lies outside",
+                     "different units (", "in mm,", "in cm?)", "--allow-outside")
+    assert not out.exists()
+    assert_bad_input(cagekit("deform", source, target, "-o", out, "--allow-outside"),
+                     "--allow-outside applies to a given --cage")
+
+
+def test_deform_suggests_o_for_an_output_given_as_a_positional(pair, tmp_path):
+    folder, source, target = pair
+    result = cagekit("deform", source, target, tmp_path / "out.obj")
+    assert_bad_input(result, "Missing option '-o'", f"Did you mean `-o {tmp_path / 'out.obj'}`?")
+    assert not (tmp_path / "out.obj").exists()
+    # no guess when nothing was left over
+    result = cagekit("deform", source, target)
+    assert_bad_input(result, "Missing option '-o'")
+    assert "Did you mean" not in result.stderr
+
+
+def test_deform_names_the_argument_of_a_bad_file(pair, tmp_path):
+    folder, source, target = pair
+    result = cagekit("deform", source, tmp_path / "missing.obj", "-o", tmp_path / "out.obj")
+    assert_bad_input(result, "TARGET (2nd argument) ", "missing.obj: ")
