@@ -7,6 +7,11 @@ core (lazily, so that ``--help`` stays fast). The rules (docs/architecture.md):
 - bad input (a :class:`cagekit.errors.InputError`, or a usage error) exits with status 2
   and prints exactly one line on stderr that names the file and the problem; the
   traceback is shown only with ``--debug`` (accepted before or after the command name);
+  a file given as a positional argument is named with it (``CAGE (2nd argument)
+  cage.obj: ...``), and a missing ``-o`` whose value was left as a positional is suggested
+  (``Did you mean `-o out.obj`?``);
+- a shape more than :data:`OUTSIDE_LIMIT` outside the cage given for it is refused, with
+  the likely cause (units, origin), unless ``--allow-outside`` (:func:`check_outside`);
 - other expected failures (an ``OSError`` while writing, say) print one line and exit 1;
 - an output that resolves to one of the inputs is refused (status 2) before any work;
 - outputs are written atomically by the library (temporary file, then rename);
