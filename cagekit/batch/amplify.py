@@ -3,7 +3,14 @@
 The paper's first application. Pairs are drawn (seeded), listed, or all taken; each item
 deforms its source to its target's proportions (:func:`cagekit.deform`) and is scored
 (:func:`cagekit.evaluate`), and a plausibility filter marks the implausible ones
-``rejected``. Items run on a process pool (no more processes than items or cores; they
+``rejected``, with the reason in the manifest: a Chamfer distance to the target above
+:data:`MAX_CD`, a part of a multi-part source bent beyond :data:`MAX_NONAFFINITY`, or parts
+that were apart in the source passing through each other (``parts cross: 2 and 3``;
+:mod:`cagekit.batch.crossing`, an exact triangle-triangle test; the manifest's
+``crossing_parts`` counts the pairs). Outputs are named ``<source>__<target>.obj`` by each
+shape's shortest distinctive name (:func:`cagekit.batch.collection.short_names`); the
+contact sheet (:mod:`cagekit.batch.sheet`) shows the items as a grid with their status.
+Items run on a process pool (no more processes than items or cores; they
 end with the batch, Ctrl-C and SIGKILL included; their warnings are issued again in the
 main process) or on any ``concurrent.futures`` executor (a cluster's); each is a pure
 function of (source, target, method, seed), so the results do not depend on where or in
@@ -37,20 +44,29 @@ from typing import Any, TypeAlias, cast
 import numpy as np
 from numpy.typing import ArrayLike
 
-from cagekit.batch.collection import SYNTHETIC_PREFIX, Shape, file_hash, find_shapes, load_shape_of
+from cagekit.batch.collection import (
+    SYNTHETIC_PREFIX,
+    Shape,
+    file_hash,
+    find_shapes,
+    load_shape_of,
+    short_names,
+)
+from cagekit.batch.crossing import part_crossings
+from cagekit.batch.sheet import SHEET_COLUMNS, Tile, draw_contact_sheet
 from cagekit.cage.fitting import fit_cage
 from cagekit.deformation import DeformOptions, DeformResult, deform
 from cagekit.errors import CagekitWarning, InputError
 from cagekit.geometry.frame import Frame
 from cagekit.interrupts import sigint_deferred
-from cagekit.io import load_mesh, save_mesh
+from cagekit.io import load_mesh, save_deformed, save_mesh
 from cagekit.io.files import atomic_output, one_line, read_text
 from cagekit.metrics import evaluate
 from cagekit.typed import Faces, Vertices
 
-__all__ = ["COLUMNS", "COORDS", "MAX_CD", "MAX_NONAFFINITY", "METHODS", "SHEET_COLUMNS", "Item",
-           "amplify", "contact_sheet", "deform_item", "plan_pairs", "prepare_worker",
-           "process_pool", "usable_cores", "worker_count"]
+__all__ = ["COLUMNS", "COORDS", "MAX_CD", "MAX_CROSSINGS", "MAX_NONAFFINITY", "METHODS",
+           "SHEET_COLUMNS", "Item", "amplify", "contact_sheet", "deform_item", "pair_title",
+           "plan_pairs", "prepare_worker", "process_pool", "usable_cores", "worker_count"]
 
 METHODS = ("cage", "scale", "model")
 #: the coordinates of method cage (:data:`cagekit.deformation.COORDS`)
@@ -62,12 +78,20 @@ MAX_NONAFFINITY = 0.02
 #: a variation whose Chamfer distance to its target (target's unit frame, as
 #: :func:`cagekit.evaluate`) exceeds this is rejected: it did not take the target's shape
 MAX_CD = 0.05
+#: a variation in which more than this many pairs of parts, apart in the source, pass
+#: through each other (:func:`cagekit.batch.crossing.part_crossings`) is rejected
+MAX_CROSSINGS = 0
 #: the manifest's columns, in order
-COLUMNS = ("source", "target", "output", "method", "coords", "seed", "status", "cd", "dcotlap",
-           "parts", "part_nonaffinity_median", "part_nonaffinity_worst",
-           "planarity_p95_deg", "seconds", "cage_seconds", "error", "source_hash", "target_hash")
-_FIGURES = ("cd", "dcotlap", "parts", "part_nonaffinity_median", "part_nonaffinity_worst",
+COLUMNS = ("source", "target", "output", "method", "coords", "seed", "status", "reason", "cd",
+           "dcotlap", "parts", "part_nonaffinity_median", "part_nonaffinity_worst",
+           "planarity_p95_deg", "crossing_parts", "crossing_pairs", "seconds", "cage_seconds",
+           "error", "source_hash", "target_hash")
+#: the figures of :func:`cagekit.evaluate` an item records
+_METRICS = ("cd", "dcotlap", "parts", "part_nonaffinity_median", "part_nonaffinity_worst",
             "planarity_p95_deg")
+#: every figure an item records: the metrics and the crossing parts (their number, and the
+#: pairs as ``"2 and 3, 4 and 7"``)
+_FIGURES = _METRICS + ("crossing_parts", "crossing_pairs")
 #: the cage ``deform`` fits for a source (as :func:`cagekit.deform` does by default)
 CAGE_FACES = 200
 
@@ -195,10 +219,15 @@ def _unique_file(base: str, seen: set) -> str:
     return name
 
 
-def _items(pairs) -> list[Item]:
-    """Items with unique output names (``<source>__<target>.obj``, ``-2`` on collisions)."""
+def _items(pairs, shapes) -> list[Item]:
+    """Items with unique output names: ``<source>__<target>.obj``, each the shape's short
+    name over the whole collection (:func:`~cagekit.batch.collection.short_names`, ``/``
+    as ``-``), so that a pair keeps its file whatever the plan; ``-2`` on collisions."""
+    short = {name: value.replace("/", "-")
+             for name, value in short_names(s.name for s in shapes).items()}
     seen: set = set()
-    return [Item(source, target, _unique_file(f"{source.stem}__{target.stem}", seen))
+    return [Item(source, target,
+                 _unique_file(f"{short[source.name]}__{short[target.name]}", seen))
             for source, target in pairs]
 
 
@@ -278,7 +307,7 @@ def deform_item(source: str, target: str, method: str = "cage", seed: int = 0,
     if figures is None:
         out["seconds"] = time.perf_counter() - start
         return out
-    out.update({name: getattr(figures, name) for name in _FIGURES})
+    out.update({name: getattr(figures, name) for name in _METRICS})
     out.update(status="ok", vertices=result.vertices, faces=Fs,
                seconds=time.perf_counter() - start)
     return out
@@ -347,6 +376,9 @@ def _deform_and_score(source, target, method, seed, cage, deformer, out, coords)
         raise InputError(f"unknown method {method!r}; available: {', '.join(METHODS)}")
     figures = evaluate(Vs, Fs, Vt, Ft, result.vertices, seed=seed,
                        frames=(result.source_frame, result.target_frame))
+    crossings = part_crossings(Vs, Fs, result.vertices)
+    out.update(crossing_parts=crossings.count,
+               crossing_pairs=crossings.named())
     return figures, result, Fs
 
 
@@ -398,11 +430,23 @@ class _Manifest:
                 writer.writerows(rows)
 
 
-def _status(row, max_nonaffinity, max_cd) -> str:
+def _verdict(row, max_nonaffinity, max_cd, max_crossings) -> tuple[str, str]:
+    """The plausibility filter: ``(status, reason)`` of a row's figures.
+
+    ``"rejected"`` with every reason, ``"; "`` between them (parts that cross, a bent part,
+    a Chamfer distance too large), or ``("ok", "")``; a failed row stays failed.
+    """
     if row["status"] == "failed":
-        return "failed"
-    too_bent = row["parts"] >= 2 and row["part_nonaffinity_worst"] > max_nonaffinity
-    return "rejected" if too_bent or row["cd"] > max_cd else "ok"
+        return "failed", ""
+    reasons = []
+    if row["crossing_parts"] > max_crossings:
+        reasons.append(f"parts cross: {row['crossing_pairs']}")
+    if row["parts"] >= 2 and row["part_nonaffinity_worst"] > max_nonaffinity:
+        reasons.append(f"part bent {100 * row['part_nonaffinity_worst']:.1f}% > "
+                       f"{100 * max_nonaffinity:.1f}%")
+    if row["cd"] > max_cd:
+        reasons.append(f"CD x1e2 {100 * row['cd']:.2f} > {100 * max_cd:.2f}")
+    return ("rejected" if reasons else "ok"), "; ".join(reasons)
 
 
 def _done(row, item, method, seed, coords, folder, drop_rejected) -> bool:
@@ -416,6 +460,8 @@ def _done(row, item, method, seed, coords, folder, drop_rejected) -> bool:
         return False
     if row["status"] == "failed":
         return True
+    if "crossing_parts" not in row:  # an earlier version's row: no crossing test
+        return False
     return os.path.exists(os.path.join(folder, "variations", item.output)) or (
         os.path.exists(os.path.join(folder, "rejected", item.output)) or drop_rejected)
 
@@ -483,7 +529,8 @@ def amplify(collection: str, out_dir: str, *, variations: int | None = None,
             pairs: str | None = None, method: str = "cage", deformer: _Deformer | None = None,
             category_by: str | None = None, seed: int = 0, workers: int | None = None,
             executor: cf.Executor | None = None, max_nonaffinity: float = MAX_NONAFFINITY,
-            max_cd: float = MAX_CD, drop_rejected: bool = False,
+            max_cd: float = MAX_CD, max_crossings: int = MAX_CROSSINGS,
+            drop_rejected: bool = False,
             contact_sheet_path: str | None = None,
             progress: Callable[[int, int], object] | None = None,
             coords: str = "mvc") -> list[dict[str, Any]]:
@@ -515,6 +562,11 @@ def amplify(collection: str, out_dir: str, *, variations: int | None = None,
         at the same paths.
     max_nonaffinity, max_cd : float
         The plausibility filter (:data:`MAX_NONAFFINITY`, :data:`MAX_CD`).
+    max_crossings : int, default :data:`MAX_CROSSINGS`
+        The filter's third test: more pairs of parts than this that were apart in the
+        source and pass through each other in the variation
+        (:func:`cagekit.batch.crossing.part_crossings`) reject it. The manifest's
+        ``reason`` says why a variation was rejected (``parts cross: 2 and 3``).
     drop_rejected : bool, default False
         Do not keep the rejected variations' meshes.
     contact_sheet_path : str, optional
@@ -556,7 +608,7 @@ def amplify(collection: str, out_dir: str, *, variations: int | None = None,
     _check_out_dir(collection, out_dir)
     shapes = find_shapes(collection, exclude=[out_dir])
     items = _items(plan_pairs(shapes, variations=variations, pairs=pairs,
-                              category_by=category_by, seed=seed))
+                              category_by=category_by, seed=seed), shapes)
     for sub in ("variations", "cages") + (() if drop_rejected else ("rejected",)):
         os.makedirs(os.path.join(out_dir, sub), exist_ok=True)
     manifest = _Manifest(out_dir)
@@ -570,11 +622,13 @@ def amplify(collection: str, out_dir: str, *, variations: int | None = None,
             todo.append(item)
     manifest.rows = kept  # rows of other pairs, or of changed inputs, are dropped
     for row in kept.values():  # a changed filter applies to kept rows too
-        _refile(row, _status(row, max_nonaffinity, max_cd), out_dir, drop_rejected)
+        _refile(row, _verdict(row, max_nonaffinity, max_cd, max_crossings), out_dir,
+                drop_rejected)
     cages = _Cages(out_dir, shapes, manifest)
     manifest.save(order)
     runner = _Runner(items, todo, manifest, cages, order, out_dir, method, seed, deformer,
-                     max_nonaffinity, max_cd, drop_rejected, progress, coords)
+                     (max_nonaffinity, max_cd, max_crossings), drop_rejected, progress,
+                     coords)
     runner.run(executor, workers)
     rows = [manifest.rows[key] for key in order]
     if contact_sheet_path:
@@ -615,12 +669,13 @@ def _check_out_dir(collection: str, out_dir: str) -> None:
                              "folder", out_dir)
 
 
-def _refile(row, status, folder, drop_rejected):
-    """Put a kept variation where its (possibly new) status says: variations/, rejected/,
-    or nowhere (rejected with ``drop_rejected``)."""
+def _refile(row, verdict, folder, drop_rejected):
+    """Put a kept variation where its (possibly new) ``(status, reason)`` says:
+    variations/, rejected/, or nowhere (rejected with ``drop_rejected``)."""
     if row["status"] == "failed":
         return
-    row["status"] = status
+    status = verdict[0]
+    row["status"], row["reason"] = verdict
     here = [os.path.join(folder, sub, row["output"]) for sub in ("variations", "rejected")]
     found = next((path for path in here if os.path.exists(path)), None)
     if status == "rejected" and drop_rejected:
@@ -850,11 +905,11 @@ class _Runner:
     """Submits items, a bounded number at a time, and records each as it finishes."""
 
     def __init__(self, items, todo, manifest, cages, order, folder, method, seed, deformer,
-                 max_nonaffinity, max_cd, drop_rejected, progress, coords):
+                 limits, drop_rejected, progress, coords):
         self.todo, self.manifest, self.order, self.folder = todo, manifest, order, folder
         self.method, self.seed, self.deformer = method, seed, deformer
         self.coords = coords
-        self.max_nonaffinity, self.max_cd = max_nonaffinity, max_cd
+        self.limits = limits  # (max_nonaffinity, max_cd, max_crossings)
         self.drop_rejected, self.progress = drop_rejected, progress
         self.total, self.finished = len(items), len(items) - len(todo)
         self.cages = cages
@@ -951,7 +1006,7 @@ class _Runner:
         row = {"source": item.source.name, "target": item.target.name,
                "output": item.output, "method": self.method, "coords": self.coords,
                "seed": self.seed,
-               "status": result["status"], "error": result["error"],
+               "status": result["status"], "reason": "", "error": result["error"],
                "seconds": round(result.get("seconds", 0.0), 4),
                "cage_seconds": round(result.get("cage_seconds", 0.0), 4),
                "source_hash": item.source.fingerprint, "target_hash": item.target.fingerprint}
@@ -959,11 +1014,11 @@ class _Runner:
             row[name] = result.get(name)
         self._relay(result.get("warnings", ()))
         if result["status"] == "ok":
-            row["status"] = _status(row, self.max_nonaffinity, self.max_cd)
+            row["status"], row["reason"] = _verdict(row, *self.limits)
             if row["status"] == "ok" or not self.drop_rejected:
                 folder = "variations" if row["status"] == "ok" else "rejected"
-                save_mesh(os.path.join(self.folder, folder, item.output),
-                          result["vertices"], result["faces"])
+                _save_variation(os.path.join(self.folder, folder, item.output),
+                                result["vertices"], result["faces"], item.source.location)
             if result.get("cage") is not None and not self.cages.has(item.source.name):
                 self.cages.save(item.source, result["cage"])
         self.manifest.rows[(item.source.name, item.target.name)] = row
@@ -973,16 +1028,26 @@ class _Runner:
             self.progress(self.finished, self.total)
 
 
+def _save_variation(path: str, V: np.ndarray, F: np.ndarray, source: str) -> None:
+    """Write a variation; from a source file, as a copy of it that keeps its UVs,
+    materials, groups and normals (:func:`cagekit.io.save_deformed`)."""
+    if source.startswith("synthetic:"):
+        save_mesh(path, V, F)
+    else:
+        save_deformed(path, V, F, source)
+
+
 # ------------------------------------------------------------------------ contact sheet
 
 
 def contact_sheet(rows: Sequence[dict[str, Any]], items: Sequence[Item], folder: str, path: str,
-                  limit: int = 24) -> str:
-    """A PNG grid: source, target and variation of the first ``limit`` finished items.
+                  limit: int = 24, columns: int = SHEET_COLUMNS) -> str:
+    """A PNG grid of the first ``limit`` finished items (:mod:`cagekit.batch.sheet`).
 
-    Items stand :data:`SHEET_COLUMNS` to a line; each one's caption names the pair (long
-    names cut from the front), CD x1e2 and the worst part's non-affinity (%); rejected
-    ones say REJECTED. Failed items are left out.
+    Each tile shows the variation, its source and its target, the pair by short names
+    (:func:`pair_title`), the figures the filter decided on (CD x1e2, the worst part's
+    non-affinity, the crossing parts) and the status in its colour with the reason.
+    Failed items are left out.
 
     Parameters
     ----------
@@ -994,41 +1059,66 @@ def contact_sheet(rows: Sequence[dict[str, Any]], items: Sequence[Item], folder:
     path : str
         The PNG to write (atomically).
     limit : int, default 24
+    columns : int, default :data:`~cagekit.batch.sheet.SHEET_COLUMNS`
+        Tiles to a line, at most.
 
     Returns
     -------
     str
         ``path``.
+
+    Raises
+    ------
+    InputError
+        No finished variation to show.
     """
-    from cagekit.render import render_grid
-
-    shown, captions = [], []
+    short = short_names([i.source.name for i in items] + [i.target.name for i in items])
+    tiles = []
     for row, item in zip(rows, items):
-        if row["status"] == "failed":
+        sub = {"ok": "variations", "rejected": "rejected"}.get(row["status"])
+        file = os.path.join(folder, sub or "", row["output"])
+        if sub is None or not os.path.exists(file):
             continue
-        sub = "variations" if row["status"] == "ok" else "rejected"
-        file = os.path.join(folder, sub, row["output"])
-        if not os.path.exists(file):
-            continue
-        shown.append([load_shape_of(item.source.location), load_shape_of(item.target.location),
-                      load_mesh(file)])
-        mark = "REJECTED  " if row["status"] == "rejected" else ""
-        captions.append(f"{_short(row['source'])} -> {_short(row['target'])}\n{mark}CD x1e2 "
-                        f"{100 * row['cd']:.2f}, worst part "
-                        f"{100 * row['part_nonaffinity_worst']:.2f}%")
-        if len(shown) == limit:
+        tiles.append(Tile(load_shape_of(item.source.location),
+                          load_shape_of(item.target.location), load_mesh(file),
+                          pair_title(short[row["source"]], short[row["target"]]),
+                          _decisive_figures(row), row["status"], row.get("reason", "")))
+        if len(tiles) == limit:
             break
-    if not shown:
+    if not tiles:
         raise InputError("no finished variation to show on a contact sheet")
-    return render_grid(path, shown, captions=captions, size=(180, 200),
-                       titles=[["source", "target", "variation"]] * len(shown),
-                       columns=SHEET_COLUMNS)
+    return draw_contact_sheet(tiles, path, columns)
 
 
-#: Items side by side on a line of the contact sheet.
-SHEET_COLUMNS = 4
+def pair_title(source: str, target: str, width: int = 40) -> str:
+    """A pair's caption: ``source -> target``, each name cut in its middle when the two do
+    not fit in ``width`` characters.
+
+    Parameters
+    ----------
+    source, target : str
+        Short names (:func:`~cagekit.batch.collection.short_names`).
+    width : int, default 40
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> pair_title("antiqueChair", "chair2")
+    'antiqueChair → chair2'
+    >>> pair_title("a" * 30, "b" * 30)
+    'aaaaaaaa...aaaaaaa → bbbbbbbb...bbbbbbb'
+    """
+    half = (width - 3) // 2
+    names = [n if len(source) + len(target) + 3 <= width or len(n) <= half
+             else n[: (half - 3 + 1) // 2] + "..." + n[len(n) - (half - 3) // 2:]
+             for n in (source, target)]
+    return f"{names[0]} → {names[1]}"
 
 
-def _short(name: str, width: int = 24) -> str:
-    """A shape's name cut to ``width`` characters from its end (the distinctive part)."""
-    return name if len(name) <= width else "..." + name[-(width - 3):]
+def _decisive_figures(row: dict[str, Any]) -> str:
+    """The figures the filter decides on, one line."""
+    return (f"CD x1e2 {100 * row['cd']:.2f} · worst part "
+            f"{100 * row['part_nonaffinity_worst']:.2f}% · crossing {row['crossing_parts']}")

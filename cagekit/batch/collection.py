@@ -19,7 +19,8 @@ from cagekit.datasets.synthetic import FAMILIES
 from cagekit.errors import InputError
 from cagekit.io import SUPPORTED_MESH_EXTENSIONS, load_mesh
 
-__all__ = ["SYNTHETIC_PREFIX", "Shape", "file_hash", "find_shapes", "load_shape_of"]
+__all__ = ["SYNTHETIC_PREFIX", "Shape", "file_hash", "find_shapes", "load_shape_of",
+           "short_names"]
 
 #: a collection spec ``synthetic:<family>:<count>`` names procedural shapes
 #: (:data:`cagekit.datasets.synthetic.FAMILIES`, seeds 0 to count - 1)
@@ -173,3 +174,68 @@ def load_shape_of(location: str) -> tuple[np.ndarray, np.ndarray]:
         family, seed = location[len(SYNTHETIC_PREFIX):].split(":")
         return FAMILIES[family](seed=int(seed))
     return load_mesh(location)
+
+
+def short_names(names: Iterable[str]) -> dict[str, str]:
+    """The shortest distinctive name of each shape: for output files and captions.
+
+    A name's ``/``-separated parts are taken with a part that repeats the one before it
+    dropped (``antiqueChair/antiqueChair``), and the leading and trailing parts that every
+    name shares (a catalog folder, ShapeNet's ``model``) dropped; what is left is cut to
+    its shortest tail that no other name ends with (``tall/a`` -> ``a``, but ``x/chair``
+    and ``y/chair`` stay whole). Every name keeps at least its last part.
+
+    Parameters
+    ----------
+    names : iterable of str
+        :attr:`Shape.name` of the shapes (distinct).
+
+    Returns
+    -------
+    dict of str to str
+        The short name of each name, ``/`` kept between the parts left (two names may end
+        alike when one is a tail of the other: ``a`` and ``x/a``).
+
+    Examples
+    --------
+    >>> short_names(["cc0/antiqueChair/antiqueChair", "cc0/chair2/chair2"])
+    {'cc0/antiqueChair/antiqueChair': 'antiqueChair', 'cc0/chair2/chair2': 'chair2'}
+    >>> sorted(short_names(["03001627/1a2b/model", "03001627/3c4d/model"]).values())
+    ['1a2b', '3c4d']
+    >>> sorted(short_names(["x/chair", "y/chair", "y/table"]).values())
+    ['table', 'x/chair', 'y/chair']
+    """
+    names = list(dict.fromkeys(names))
+    parts = {name: _collapsed(name.split("/")) for name in names}
+    if len(names) > 1:
+        lead, tail = _shared_ends(list(parts.values()))
+        parts = {name: p[lead:len(p) - tail] for name, p in parts.items()}
+    short = {}
+    for name, own in parts.items():
+        others = [p for n, p in parts.items() if n != name]
+        k = 1
+        while k < len(own) and any(p[-k:] == own[-k:] for p in others):
+            k += 1
+        short[name] = "/".join(own[-k:])
+    return short
+
+
+def _collapsed(parts: list[str]) -> list[str]:
+    """``parts`` without a part equal to the one before it (and without empty parts)."""
+    out: list[str] = []
+    for part in parts:
+        if part and (not out or out[-1] != part):
+            out.append(part)
+    return out or [""]
+
+
+def _shared_ends(lists: list[list[str]]) -> tuple[int, int]:
+    """How many leading and trailing parts every list shares, leaving each at least one."""
+    room = min(len(p) for p in lists) - 1
+    lead = 0
+    while lead < room and len({p[lead] for p in lists}) == 1:
+        lead += 1
+    tail = 0
+    while tail < room - lead and len({p[-1 - tail] for p in lists}) == 1:
+        tail += 1
+    return lead, tail

@@ -66,25 +66,38 @@ def _pairs_option(ctx, param, value):
 @click.option("--max-cd", type=FiniteFloatRange(min=0.0), default=None,
               help="Reject a variation whose Chamfer distance to its target exceeds this "
                    "(target's unit frame) [default: 0.05].")
+@click.option("--max-crossings", type=click.IntRange(min=0), default=None,
+              help="Reject a variation in which more pairs of parts than this, apart in "
+                   "the source, pass through each other (exact triangle test) [default: 0].")
 @click.option("--drop-rejected", is_flag=True, help="Do not keep rejected meshes.")
 @click.option("--contact-sheet", "sheet", type=click.Path(dir_okay=False), default=None,
-              help="PNG: source, target and variation of the first 24 items.")
+              help="PNG: a grid of the first 24 items (variation, source, target, the "
+                   "figures, the status and its reason).")
 @json_option
 @debug_option
 @click.pass_context
 def amplify(ctx: click.Context, collection: str, out: str, variations: int | None,
             pairs: str | None, method: str, model_path: str | None, refine: bool, coords: str,
             category_by: str | None, seed: int, workers: int | None, cluster: str | None,
-            max_nonaffinity: float | None, max_cd: float | None, drop_rejected: bool,
+            max_nonaffinity: float | None, max_cd: float | None,
+            max_crossings: int | None, drop_rejected: bool,
             sheet: str | None, as_json: bool) -> None:
     """Deform sources of COLLECTION onto targets of it: many plausible variations.
 
     COLLECTION is a folder of meshes (searched recursively; ShapeNet's
     <synset>/<id>/model.obj works) or synthetic:<family>:<count>. Outputs:
-    OUT/variations/<source>__<target>.obj, OUT/rejected/ (variations the filter
-    rejects), OUT/cages/ (each source's cage, fitted once), OUT/manifest.csv and
+    OUT/variations/<source>__<target>.obj (each shape's shortest distinctive name:
+    chairs/oak/oak.obj is oak), OUT/rejected/ (variations the filter rejects),
+    OUT/cages/ (each source's cage, fitted once), OUT/manifest.csv and
     OUT/manifest.json (one row per item, rewritten after each). Running the same
     command again redoes only missing items and items whose input files changed.
+
+    The filter rejects a variation whose Chamfer distance to its target exceeds
+    --max-cd, whose worst part bends beyond --max-nonaffinity, or in which parts
+    (connected pieces of the source, numbered in file order) that were apart in the
+    source pass through each other (a chair's legs crossed into a V): the manifest's
+    reason column says why ("parts cross: 2 and 3"), crossing_parts and
+    crossing_pairs give the pairs.
     Exit status 0 when every item is ok or rejected, 3 when some failed (see the
     manifest's error column), 2 for bad arguments.
 
@@ -92,7 +105,7 @@ def amplify(ctx: click.Context, collection: str, out: str, variations: int | Non
     Example:
       cagekit amplify chairs/ -o variations/ --variations 40 --contact-sheet sheet.png
     """
-    from cagekit.batch.amplify import MAX_CD, MAX_NONAFFINITY
+    from cagekit.batch.amplify import MAX_CD, MAX_CROSSINGS, MAX_NONAFFINITY
     from cagekit.batch.amplify import amplify as run_batch
 
     start_command(ctx)
@@ -115,6 +128,8 @@ def amplify(ctx: click.Context, collection: str, out: str, variations: int | Non
                          max_nonaffinity=MAX_NONAFFINITY if max_nonaffinity is None
                          else max_nonaffinity,
                          max_cd=MAX_CD if max_cd is None else max_cd,
+                         max_crossings=MAX_CROSSINGS if max_crossings is None
+                         else max_crossings,
                          drop_rejected=drop_rejected, contact_sheet_path=sheet,
                          progress=bar_callback(bar), coords=coords)
     counts = {status: sum(r["status"] == status for r in rows)

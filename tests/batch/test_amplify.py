@@ -97,13 +97,13 @@ def test_batch_outputs_broken_file_filter_and_json(folder, tmp_path):
     assert "broken.obj" in rows[("low/c", "low/broken")]["error"]
     good = rows[("tall/a", "tall/b")]
     assert good["status"] == "ok" and float(good["cd"]) > 0
-    V, F = load_mesh(out / "variations" / "tall-a__tall-b.obj")
+    V, F = load_mesh(out / "variations" / "a__b.obj")
     source = load_mesh(folder / "tall" / "a.obj")
     assert V.shape == source[0].shape and np.array_equal(F, source[1])
     # the two finished pairs side by side, source, target and variation each
     from matplotlib.image import imread
 
-    assert imread(sheet).shape[:2] == (200, 2 * 3 * 180)
+    assert imread(sheet).shape[:2] == (270, 2 * 300)  # two tiles on one line
     # a filter that rejects everything moves the kept meshes to rejected/, redoing nothing
     again = cagekit("amplify", folder, "-o", out, "--pairs", "all", "--category-by",
                     "folder", "--method", "scale", "--workers", "1", "--max-cd", "0")
@@ -111,8 +111,8 @@ def test_batch_outputs_broken_file_filter_and_json(folder, tmp_path):
     rows = {(r["source"], r["target"]): r for r in rows_of(out)}
     assert rows[("tall/a", "tall/b")]["status"] == "rejected"
     assert rows[("tall/a", "tall/b")]["seconds"] == good["seconds"]  # not redone
-    assert (out / "rejected" / "tall-a__tall-b.obj").exists()
-    assert not (out / "variations" / "tall-a__tall-b.obj").exists()
+    assert (out / "rejected" / "a__b.obj").exists()
+    assert not (out / "variations" / "a__b.obj").exists()
 
 
 def test_multi_part_variations_bent_beyond_the_threshold_are_rejected(tmp_path):

@@ -1,0 +1,94 @@
+"""Tests of the names and the contact sheet of ``cagekit amplify``: shortest distinctive
+names (files and captions), output files without a repeated stem, the sheet's grid growing
+in lines, its colours and captions."""
+
+import numpy as np
+import pytest
+from matplotlib.image import imread
+
+from cagekit.batch.amplify import amplify, pair_title
+from cagekit.batch.collection import short_names
+from cagekit.batch.sheet import (
+    SHEET_COLUMNS,
+    TILE_SIZE,
+    Tile,
+    draw_contact_sheet,
+    sheet_size,
+    status_colour,
+)
+from cagekit.datasets import synthetic
+from cagekit.io import save_mesh
+
+TETRA = (np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]]),
+         np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]))
+
+
+@pytest.mark.parametrize("names, expected", [
+    # Sweet Home 3D: a catalog folder, then <model>/<model>.obj
+    (["blendswap-cc-0/antiqueChair/antiqueChair", "blendswap-cc-0/chairWithCushion/"
+      "chairWithCushion", "blendswap-cc-by/chairWithCushion/chairWithCushion"],
+     ["antiqueChair", "blendswap-cc-0/chairWithCushion", "blendswap-cc-by/chairWithCushion"]),
+    # ShapeNet: <synset>/<id>/model.obj
+    (["03001627/1a2b/model", "03001627/3c4d/model"], ["1a2b", "3c4d"]),
+    (["tall/a", "tall/b", "low/c"], ["a", "b", "c"]),
+    (["x/chair", "y/chair", "y/table"], ["x/chair", "y/chair", "table"]),
+    (["a/model", "b/c/model"], ["a", "c"]),
+    (["chairs_000", "chairs_001"], ["chairs_000", "chairs_001"]),
+    (["only/one/one"], ["one"]),
+])
+def test_short_names_are_the_shortest_distinctive_tails(names, expected):
+    assert [short_names(names)[n] for n in names] == expected
+
+
+def test_pair_titles_fit_and_keep_both_ends():
+    assert pair_title("antiqueChair", "chair2") == "antiqueChair → chair2"
+    long = pair_title("blendswap-cc-0/chairWithCushion", "blendswap-cc-by/chairWithCushion")
+    assert len(long) <= 40 and long.startswith("blends") and "Cushion →" in long
+    assert long.endswith("Cushion")
+
+
+def test_outputs_are_named_without_the_repeated_stem(tmp_path):
+    folder = tmp_path / "catalog"
+    for k, name in enumerate(("antiqueChair/antiqueChair", "chair2/chair2", "x/chair",
+                              "y/chair")):
+        (folder / name).parent.mkdir(parents=True, exist_ok=True)
+        save_mesh(folder / f"{name}.obj", *synthetic.chair(seed=k, resolution=0.5))
+    pairs = tmp_path / "pairs.csv"
+    pairs.write_text("antiqueChair/antiqueChair,chair2/chair2\nx/chair,y/chair\n")
+    rows = amplify(str(folder), str(tmp_path / "out"), pairs=str(pairs), method="scale",
+                   workers=1)
+    assert [r["output"] for r in rows] == ["antiqueChair__chair2.obj", "x-chair__y-chair.obj"]
+
+
+def test_the_sheet_is_a_grid_growing_in_lines():
+    assert sheet_size(1) == TILE_SIZE
+    assert sheet_size(SHEET_COLUMNS) == (SHEET_COLUMNS * TILE_SIZE[0], TILE_SIZE[1])
+    assert sheet_size(SHEET_COLUMNS + 1) == (SHEET_COLUMNS * TILE_SIZE[0], 2 * TILE_SIZE[1])
+    assert sheet_size(24, columns=6) == (6 * TILE_SIZE[0], 4 * TILE_SIZE[1])
+
+
+def test_status_colours():
+    assert status_colour("ok") == "#2e7d32"
+    assert status_colour("rejected", "parts cross: 1 and 2") == "#c62828"
+    assert status_colour("rejected", "CD x1e2 6.00 > 5.00") == "#e65100"
+
+
+def test_the_drawn_sheet_has_its_size_and_each_tile_its_status_colour(tmp_path):
+    tiles = [Tile(TETRA, TETRA, TETRA, f"s{k} → t{k}", "CD x1e2 1.00 · worst part 0.10% · "
+                  "crossing 0", "ok" if k % 2 else "rejected",
+                  "" if k % 2 else "parts cross: 1 and 2") for k in range(7)]
+    path = draw_contact_sheet(tiles, tmp_path / "sheet.png", columns=3)
+    image = imread(path)[..., :3]
+    assert image.shape[:2] == (3 * TILE_SIZE[1], 3 * TILE_SIZE[0])  # 3 lines of 3
+    green, red = (np.array([0x2e, 0x7d, 0x32]) / 255, np.array([0xc6, 0x28, 0x28]) / 255)
+
+    def has(colour, line, column):
+        tile = image[line * TILE_SIZE[1]:(line + 1) * TILE_SIZE[1],
+                     column * TILE_SIZE[0]:(column + 1) * TILE_SIZE[0]]
+        return bool(np.any(np.abs(tile - colour).max(axis=-1) < 0.05))
+
+    assert has(red, 0, 0) and not has(green, 0, 0)  # tile 0: rejected
+    assert has(green, 0, 1) and not has(red, 0, 1)  # tile 1: ok
+    assert not has(red, 2, 1) and not has(green, 2, 1)  # no tile 7: blank
+    with pytest.raises(ValueError, match="at least one tile"):
+        draw_contact_sheet([], tmp_path / "empty.png")
