@@ -126,7 +126,7 @@ def transfer(ctx: click.Context, template: str, template_cage: str, template_lan
     t_fitted = time.perf_counter()
     results = _transfer_poses(char, (Vt, Ft), (cage_v, cage_f), pose_paths, pose_meshes, model,
                               rule, root, seed)
-    rows = _write(out, char, pose_paths, names, results, pose_meshes, grid_path)
+    rows = _write(out, char, character, pose_paths, names, results, pose_meshes, grid_path)
     left_out = _grid(grid_path, (Vt, Ft), char, pose_meshes, results, names)
     seconds = {"load": t_loaded - start, "fit": t_fitted - t_loaded,
                "transfer": time.perf_counter() - t_fitted}
@@ -315,7 +315,7 @@ def _transfer_poses(char, template, template_cage, pose_paths, pose_meshes, mode
     return results
 
 
-def _write(out, char, pose_paths, names, results, pose_meshes, grid_path):
+def _write(out, char, character, pose_paths, names, results, pose_meshes, grid_path):
     """The transferred poses, the character's cage and the picture; a row per pose."""
     from cagekit import io
     from cagekit.io.files import output_folder
@@ -323,7 +323,7 @@ def _write(out, char, pose_paths, names, results, pose_meshes, grid_path):
     with output_folder(out):
         rows = []
         for path, name, (X, seconds) in zip(pose_paths, names, results):
-            io.save_mesh(out / name, X, char.faces)
+            io.save_deformed(out / name, X, char.faces, character)  # keeps UVs, materials
             rows.append({"pose": str(path), "output": str(out / name), "seconds": seconds})
         io.save_mesh(out / "character_cage.obj", char.cage_v, char.cage_f)
     return rows

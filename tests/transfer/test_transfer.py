@@ -638,3 +638,29 @@ def test_a_pose_of_another_mesh_is_refused_unless_matched_by_shape(data, tmp_pat
     result = _run([*_inputs(out), other, "-o", tmp_path / "res", "--match-shape"])
     assert result.exit_code == 0, result.output
     assert (tmp_path / "res" / "other.obj").exists()
+
+
+def test_the_transferred_poses_keep_the_character_s_asset(data, tmp_path):
+    # the character as an artist's OBJ: UVs, a group and a material; each pose written
+    # keeps them, with its material file beside it
+    out, _ = data
+    Vc, Fc = io.load_mesh(out / "characters" / "stocky.obj")
+    folder = tmp_path / "artist"
+    folder.mkdir()
+    (folder / "skin.mtl").write_text("newmtl skin\nKd 0.8 0.6 0.5\n")
+    lines = ["mtllib skin.mtl", "g body", "usemtl skin"]
+    lines += [f"v {x:.17g} {y:.17g} {z:.17g}" for x, y, z in Vc]
+    lines += [f"vt {u:.6f} {v:.6f}" for u, v in (Vc[:, :2] - Vc[:, :2].min(0)) / np.ptp(Vc)]
+    lines += ["f " + " ".join(f"{i + 1}/{i + 1}" for i in face) for face in Fc]
+    character = folder / "stocky.obj"
+    character.write_text("\n".join(lines) + "\n")
+    inputs = _inputs(out)
+    inputs[3] = character
+    result = _run([*inputs, out / "poses" / "pose_000.obj", "-o", tmp_path / "res"])
+    assert result.exit_code == 0, result.output
+    written = (tmp_path / "res" / "pose_000.obj").read_text().splitlines()
+    assert sum(line.startswith("vt ") for line in written) == len(Vc)
+    assert "usemtl skin" in written and "g body" in written
+    assert "mtllib pose_000.mtl" in written
+    assert "newmtl skin" in (tmp_path / "res" / "pose_000.mtl").read_text()
+    np.testing.assert_array_equal(io.load_mesh(tmp_path / "res" / "pose_000.obj")[1], Fc)
