@@ -7,7 +7,8 @@ deforms its source to its target's proportions (:func:`cagekit.deform`) and is s
 :data:`MAX_CD`, a part of a multi-part source bent beyond :data:`MAX_NONAFFINITY`, or parts
 that were apart in the source passing through each other (``parts cross: 2 and 3``;
 :mod:`cagekit.batch.crossing`, an exact triangle-triangle test; the manifest's
-``crossing_parts`` counts the pairs). Outputs are named ``<source>__<target>.obj`` by each
+``crossing_parts`` counts the pairs). Outputs are named ``<source>__<target>.obj`` (``.ply``
+or ``.glb`` for such sources, which keep their asset that way) by each
 shape's shortest distinctive name (:func:`cagekit.batch.collection.short_names`); the
 contact sheet (:mod:`cagekit.batch.sheet`) shows the items as a grid with their status.
 Items run on a process pool (no more processes than items or cores; they
@@ -210,24 +211,34 @@ def plan_pairs(shapes: Sequence[Shape], *, variations: int | None = None,
     return out
 
 
-def _unique_file(base: str, seen: set) -> str:
-    """``<base>.obj``, or ``<base>-2.obj``, ``-3``... the first not in ``seen`` (added)."""
-    name, k = f"{base}.obj", 2
+def _unique_file(base: str, seen: set, ext: str = ".obj") -> str:
+    """``<base><ext>``, or ``<base>-2<ext>``, ``-3``... the first not in ``seen`` (added)."""
+    name, k = f"{base}{ext}", 2
     while name in seen:
-        name, k = f"{base}-{k}.obj", k + 1
+        name, k = f"{base}-{k}{ext}", k + 1
     seen.add(name)
     return name
 
 
+def _variation_extension(location: str) -> str:
+    """The format a variation of ``location`` is written in: the source's own where it
+    carries more than geometry (``.ply``; ``.glb`` for GLB and GLTF, see
+    :func:`cagekit.io.save_deformed`), else OBJ."""
+    ext = os.path.splitext(location)[1].lower()
+    return {".ply": ".ply", ".glb": ".glb", ".gltf": ".glb"}.get(ext, ".obj")
+
+
 def _items(pairs, shapes) -> list[Item]:
-    """Items with unique output names: ``<source>__<target>.obj``, each the shape's short
+    """Items with unique output names: ``<source>__<target>.obj`` (``.ply`` or ``.glb``
+    for such a source: :func:`_variation_extension`), each the shape's short
     name over the whole collection (:func:`~cagekit.batch.collection.short_names`, ``/``
     as ``-``), so that a pair keeps its file whatever the plan; ``-2`` on collisions."""
     short = {name: value.replace("/", "-")
              for name, value in short_names(s.name for s in shapes).items()}
     seen: set = set()
     return [Item(source, target,
-                 _unique_file(f"{short[source.name]}__{short[target.name]}", seen))
+                 _unique_file(f"{short[source.name]}__{short[target.name]}", seen,
+                              _variation_extension(source.location)))
             for source, target in pairs]
 
 

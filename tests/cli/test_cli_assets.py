@@ -96,3 +96,23 @@ def test_amplify_variations_keep_the_asset(textured, tmp_path):
     assert len(written) == 2
     for path in written:  # named <source>__<target>.obj
         _assert_keeps_the_asset(path, folder / f"{path.stem.split('__')[0]}.obj")
+
+
+def test_amplify_writes_a_ply_collection_as_ply_keeping_its_colours(tmp_path):
+    folder = tmp_path / "collection"
+    folder.mkdir()
+    V, F = bumpy_blob(subdivisions=2)
+    colours = np.random.default_rng(1).integers(0, 256, (len(V), 4), dtype=np.uint8)
+    for name, stretch in (("a", [1.0, 1.0, 1.0]), ("b", [1.5, 0.7, 1.0])):
+        mesh = trimesh.Trimesh(V * stretch, F, vertex_colors=colours, process=False)
+        (folder / f"{name}.ply").write_bytes(trimesh.exchange.ply.export_ply(mesh))
+    out = tmp_path / "out"
+    result = cagekit("amplify", folder, "-o", out, "--pairs", "all", "--method", "scale",
+                     "--workers", "1")
+    assert result.returncode == 0, result.stderr
+    assert "not kept" not in result.stderr
+    written = sorted((out / "variations").iterdir())
+    assert [p.name for p in written] == ["a__b.ply", "b__a.ply"]
+    for path in written:
+        back = trimesh.load(path, process=False)
+        np.testing.assert_array_equal(back.visual.vertex_colors, colours)
