@@ -60,7 +60,14 @@ from cagekit.deformation import DeformOptions, DeformResult, deform
 from cagekit.errors import CagekitWarning, InputError
 from cagekit.geometry.frame import Frame
 from cagekit.interrupts import sigint_deferred
-from cagekit.io import load_mesh, save_deformed, save_mesh
+from cagekit.io import (
+    kept_extension,
+    load_mesh,
+    move_deformed,
+    remove_deformed,
+    save_deformed,
+    save_mesh,
+)
 from cagekit.io.files import atomic_output, one_line, read_text
 from cagekit.metrics import evaluate
 from cagekit.typed import Faces, Vertices
@@ -224,8 +231,7 @@ def _variation_extension(location: str) -> str:
     """The format a variation of ``location`` is written in: the source's own where it
     carries more than geometry (``.ply``; ``.glb`` for GLB and GLTF, see
     :func:`cagekit.io.save_deformed`), else OBJ."""
-    ext = os.path.splitext(location)[1].lower()
-    return {".ply": ".ply", ".glb": ".glb", ".gltf": ".glb"}.get(ext, ".obj")
+    return ".obj" if location.startswith("synthetic:") else kept_extension(location)
 
 
 def _items(pairs, shapes) -> list[Item]:
@@ -691,11 +697,11 @@ def _refile(row, verdict, folder, drop_rejected):
     found = next((path for path in here if os.path.exists(path)), None)
     if status == "rejected" and drop_rejected:
         if found is not None:
-            os.remove(found)
+            remove_deformed(found)  # with its own .mtl
         return
     wanted = here[0] if status == "ok" else here[1]
     if found is not None and found != wanted:
-        os.replace(found, wanted)
+        move_deformed(found, wanted)  # with its own .mtl, textures reachable
 
 
 def prepare_worker() -> None:
@@ -1028,8 +1034,11 @@ class _Runner:
             row["status"], row["reason"] = _verdict(row, *self.limits)
             if row["status"] == "ok" or not self.drop_rejected:
                 folder = "variations" if row["status"] == "ok" else "rejected"
-                _save_variation(os.path.join(self.folder, folder, item.output),
-                                result["vertices"], result["faces"], item.source.location)
+                try:
+                    _save_variation(os.path.join(self.folder, folder, item.output),
+                                    result["vertices"], result["faces"], item.source.location)
+                except InputError as exc:  # this item failed, not the batch
+                    row["status"], row["reason"], row["error"] = "failed", "", one_line(exc)
             if result.get("cage") is not None and not self.cages.has(item.source.name):
                 self.cages.save(item.source, result["cage"])
         self.manifest.rows[(item.source.name, item.target.name)] = row

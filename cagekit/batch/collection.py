@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+from collections import Counter
 from collections.abc import Iterable
 from dataclasses import dataclass
 
@@ -193,8 +194,9 @@ def short_names(names: Iterable[str]) -> dict[str, str]:
     Returns
     -------
     dict of str to str
-        The short name of each name, ``/`` kept between the parts left (two names may end
-        alike when one is a tail of the other: ``a`` and ``x/a``).
+        The short name of each name, ``/`` kept between the parts left; distinct: names
+        that would still end alike (``oak`` and ``oak/oak``, ``a`` and ``x/a``) keep
+        their whole names.
 
     Examples
     --------
@@ -204,6 +206,8 @@ def short_names(names: Iterable[str]) -> dict[str, str]:
     ['1a2b', '3c4d']
     >>> sorted(short_names(["x/chair", "y/chair", "y/table"]).values())
     ['table', 'x/chair', 'y/chair']
+    >>> short_names(["oak", "oak/oak"])
+    {'oak': 'oak', 'oak/oak': 'oak/oak'}
     """
     names = list(dict.fromkeys(names))
     parts = {name: _collapsed(name.split("/")) for name in names}
@@ -217,7 +221,8 @@ def short_names(names: Iterable[str]) -> dict[str, str]:
         while k < len(own) and any(p[-k:] == own[-k:] for p in others):
             k += 1
         short[name] = "/".join(own[-k:])
-    return short
+    counts = Counter(short.values())
+    return {name: name if counts[value] > 1 else value for name, value in short.items()}
 
 
 def _collapsed(parts: list[str]) -> list[str]:

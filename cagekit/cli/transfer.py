@@ -101,7 +101,7 @@ def transfer(ctx: click.Context, template: str, template_cage: str, template_lan
     start_command(ctx)
     start = time.perf_counter()
     pose_paths = _pose_paths(poses)
-    names = _output_names(pose_paths)
+    names = _output_names(pose_paths, character)
     out = Path(out_dir)
     inputs = [template, template_landmarks, character, character_landmarks,
               *map(str, pose_paths)] + ([] if template_cage == AUTO else [template_cage])
@@ -183,13 +183,17 @@ def _pose_paths(poses) -> list[Path]:
     return paths
 
 
-def _output_names(paths) -> list[str]:
+def _output_names(paths, character) -> list[str]:
+    """``<pose name><ext>``, in the format that keeps the character's asset (OBJ, PLY or
+    GLB: :func:`cagekit.io.kept_extension`)."""
     from cagekit.datasets.named_poses import PREFIX
+    from cagekit.io.assets import kept_extension
 
+    ext = kept_extension(character)
     names: list[str] = []
     seen: dict[str, int] = {}
     for path in paths:
-        name = f"{path.stem.removeprefix(PREFIX)}.obj"
+        name = f"{path.stem.removeprefix(PREFIX)}{ext}"
         if name in seen:
             raise InputError(f"two poses would both be written as {name} ({seen[name]} and "
                              f"{path}): rename one", path)

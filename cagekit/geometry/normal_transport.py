@@ -22,7 +22,7 @@ __all__ = ["transported_normals"]
 
 
 def transported_normals(V0: ArrayLike, V1: ArrayLike, F: ArrayLike, corner_normals: ArrayLike,
-                        corner_groups: ArrayLike) -> np.ndarray:
+                        corner_groups: ArrayLike, n_groups: int | None = None) -> np.ndarray:
     """Carry normals given at triangle corners through the motion ``V0 -> V1``.
 
     Parameters
@@ -39,13 +39,15 @@ def transported_normals(V0: ArrayLike, V1: ArrayLike, F: ArrayLike, corner_norma
         ``(vertex, normal)`` pair of an OBJ file), in ``[0, k)``; -1 for a corner that has
         no normal. Corners of one group get one normal: the area-weighted mean of their
         carried normals.
+    n_groups : int, optional
+        ``k``, the number of groups (default ``corner_groups.max() + 1``); groups no
+        corner belongs to (an unreferenced vertex's) come back as zero vectors.
 
     Returns
     -------
     (k, 3) float64 ndarray
-        One unit normal per group, ``k = corner_groups.max() + 1``. A group whose
-        triangles are all degenerate (before or after) keeps its first corner's normal,
-        normalised.
+        One unit normal per group. A group whose triangles are all degenerate (before or
+        after) keeps its first corner's normal, normalised; a group with no corner is 0.
 
     Raises
     ------
@@ -61,13 +63,16 @@ def transported_normals(V0: ArrayLike, V1: ArrayLike, F: ArrayLike, corner_norma
     [[0.0, 0.0, 1.0]]
     """
     V0, V1, F, N, G = _checked(V0, V1, F, corner_normals, corner_groups)
-    k = int(G.max()) + 1 if G.size else 0
+    k = (int(G.max()) + 1 if G.size else 0) if n_groups is None else int(n_groups)
+    if G.size and G.max() >= k:
+        raise InputError(f"corner_groups reach group {int(G.max())}; n_groups is {k}")
     carried, area = _carry(V0, V1, F, N)
     out = np.zeros((k, 3))
     has = G >= 0
     np.add.at(out, G[has], (carried * area[:, None, None])[has])
     length = np.linalg.norm(out, axis=1)
-    lost = length <= 1e-300
+    used = np.bincount(G[has], minlength=k) > 0
+    lost = (length <= 1e-300) & used
     if lost.any():  # every triangle of the group degenerate: keep the old normal
         first = np.full(k, -1)
         flat_groups, flat_normals = G[has], N[has]

@@ -10,7 +10,13 @@
 The mesh and landmark functions are re-exported here (``cagekit.io.load_mesh``).
 """
 
-from cagekit.io.assets import asset_contents, save_deformed
+from cagekit.io.assets import (
+    asset_contents,
+    kept_extension,
+    move_deformed,
+    remove_deformed,
+    save_deformed,
+)
 from cagekit.io.landmarks import load_landmarks, save_landmarks, save_picked
 from cagekit.io.meshes import (
     SUPPORTED_MESH_EXTENSIONS,
@@ -23,6 +29,6 @@ from cagekit.io.meshes import (
 )
 
 __all__ = ["SUPPORTED_MESH_EXTENSIONS", "SUPPORTED_POINT_EXTENSIONS", "asset_contents",
-           "load_landmarks",
+           "kept_extension", "load_landmarks", "move_deformed", "remove_deformed",
            "load_mesh", "load_points", "load_shape", "save_landmarks", "save_mesh",
            "save_deformed", "save_picked", "save_points"]

@@ -29,6 +29,8 @@ written by :func:`cagekit.io.save_mesh`; when that drops something the source ca
 from __future__ import annotations
 
 import filecmp
+import hashlib
+import json
 import os
 import shutil
 import warnings
@@ -37,7 +39,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from cagekit.errors import InputError, MeshFileError, MeshFileWarning
-from cagekit.io.files import atomic_output, extension, read_bytes, read_text
+from cagekit.io.files import atomic_output, extension, read_bytes
 from cagekit.io.meshes import (
     load_mesh,
     ply_ascii_element,
@@ -48,7 +50,8 @@ from cagekit.io.meshes import (
     valid_vertices,
 )
 
-__all__ = ["asset_contents", "save_deformed"]
+__all__ = ["asset_contents", "kept_extension", "move_deformed", "remove_deformed",
+           "save_deformed"]
 
 _KEEPS = {".obj": (".obj",), ".ply": (".ply",), ".glb": (".glb",), ".gltf": (".glb",)}
 """Source extension -> output extensions that keep its asset."""
@@ -102,6 +105,89 @@ def save_deformed(path: str | os.PathLike, V: ArrayLike, F: ArrayLike,
     _WRITERS[src_ext](path, V, V0, F0, source)
 
 
+def move_deformed(path: str | os.PathLike, dest: str | os.PathLike) -> None:
+    """Move a result :func:`save_deformed` wrote, with the material files it wrote beside it.
+
+    Each ``.mtl`` beside an OBJ result is copied next to ``dest`` with its texture paths
+    valid from there (a texture is copied into ``dest``'s folder when it would be out of
+    reach, as :func:`save_deformed` does), the result is moved over, then the old
+    ``.mtl`` files are removed. Textures stay where they are: other results may use them.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The result (any format; only OBJ has material files).
+    dest : str or os.PathLike
+        Where it goes, in an existing folder; its ``mtllib`` names are kept, so ``dest``
+        keeps ``path``'s file name stem.
+
+    Examples
+    --------
+    >>> move_deformed("out/variations/a__b.obj", "out/rejected/a__b.obj")  # doctest: +SKIP
+    """
+    materials = _own_material_files(path)
+    folder = os.path.dirname(os.path.abspath(os.fspath(dest)))
+    for mtl in materials:
+        _copy_mtl(mtl, os.path.join(folder, os.path.basename(mtl)))
+    os.replace(path, dest)
+    for mtl in materials:
+        os.remove(mtl)
+
+
+def remove_deformed(path: str | os.PathLike) -> None:
+    """Remove a result :func:`save_deformed` wrote and the material files it wrote beside
+    it (textures stay: other results may use them).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The result.
+
+    Examples
+    --------
+    >>> remove_deformed("out/rejected/a__b.obj")  # doctest: +SKIP
+    """
+    materials = _own_material_files(path)
+    os.remove(path)
+    for mtl in materials:
+        os.remove(mtl)
+
+
+def _own_material_files(path):
+    """The material files an OBJ names that lie beside it (plain names, no folder)."""
+    if extension(path) != ".obj":
+        return []
+    folder, found = os.path.dirname(os.path.abspath(os.fspath(path))), []
+    for line in _text(path).splitlines():
+        parts = line.split("#", 1)[0].split()
+        if parts[:1] == ["mtllib"]:
+            found += [os.path.join(folder, name) for name in parts[1:]
+                      if "/" not in name and os.path.isfile(os.path.join(folder, name))]
+    return found
+
+
+def kept_extension(source: str | os.PathLike) -> str:
+    """The output extension that keeps ``source``'s asset: its own for OBJ and PLY, ``.glb``
+    for GLB and GLTF, ``.obj`` for the rest (OFF, STL: nothing to keep).
+
+    Parameters
+    ----------
+    source : str or os.PathLike
+        A mesh file's name (not read).
+
+    Returns
+    -------
+    str
+        ``".obj"``, ``".ply"`` or ``".glb"``.
+
+    Examples
+    --------
+    >>> kept_extension("robot.gltf"), kept_extension("chair.OBJ"), kept_extension("a.stl")
+    ('.glb', '.obj', '.obj')
+    """
+    return _KEEPS.get(extension(source), (".obj",))[0]
+
+
 def asset_contents(source: str | os.PathLike) -> list[str]:
     """What a mesh file carries besides vertices and faces, as words for a message.
 
@@ -140,20 +226,26 @@ _OBJ_WORDS = {"vt": "UVs", "vn": "normals", "mtllib": "materials", "usemtl": "ma
 
 def _obj_contents(source):
     found = []
-    for line in read_text(source, MeshFileError).splitlines():
+    for line in _text(source).splitlines():
         parts = line.split(None, 1)
         word = _OBJ_WORDS.get(parts[0]) if parts else None
-        if parts and parts[0] == "v" and len(line.split("#", 1)[0].split()) > 4:
+        if parts and parts[0] == "v" and len(line.split("#", 1)[0].split()) >= 7:
             word = "vertex colours"
         if word and word not in found:
             found.append(word)
     return found
 
 
+def _text(path):
+    """A text file's characters, every byte kept: bytes that are not UTF-8 (a Latin-1
+    texture name) come back unchanged when written with ``errors="surrogateescape"``."""
+    return read_bytes(path, MeshFileError).decode("utf-8", errors="surrogateescape")
+
+
 def _obj_lines(source):
     """The source's logical lines (continuations joined), comments kept in place."""
     lines, pending = [], ""
-    for line in read_text(source, MeshFileError).splitlines():
+    for line in _text(source).splitlines():
         body = line.split("#", 1)[0].rstrip()
         if body.endswith("\\"):
             pending += body[:-1] + " "
@@ -192,7 +284,8 @@ def _write_obj(path, V, V0, F0, source):
             text.append(_mtllib(line, src_folder, path, materials))
         else:
             text.append(line)
-    with atomic_output(path) as tmp, open(tmp, "w", encoding="utf-8") as handle:
+    with atomic_output(path) as tmp, open(tmp, "w", encoding="utf-8",
+                                                   errors="surrogateescape") as handle:
         handle.write("\n".join(text) + "\n")
 
 
@@ -202,29 +295,45 @@ def _mtllib(line, src_folder, out_path, written):
     made relative to the output's folder, so readers that resolve textures from the OBJ's
     folder (trimesh) and those that resolve them from the MTL's (Blender) both find them;
     a missing one is named relative to the output's folder. A name with spaces is one path
-    when a file of that name exists beside the source. ``written`` lists the copies made."""
+    when a file of that name exists beside the source. ``written`` lists the material
+    files the output names so far; a copy never replaces one of the source's own."""
     out_folder = os.path.dirname(os.path.abspath(os.fspath(out_path)))
-    rest = line.split("#", 1)[0].split(None, 1)[1].strip() if len(line.split()) > 1 else ""
-    if " " in rest and os.path.isfile(os.path.join(src_folder, rest)):
-        names = [rest]
-    else:
-        names = rest.split()
+    names = _mtllib_names(line, src_folder)
+    sources = {os.path.abspath(_beside(name, src_folder)) for name in names}
+    stem = os.path.splitext(os.path.basename(os.fspath(out_path)))[0]
     out = []
     for name in names:
-        mtl = name if os.path.isabs(name) else os.path.join(src_folder, name)
+        mtl = os.path.abspath(_beside(name, src_folder))
         if not os.path.isfile(mtl):
             out.append(_relative(name, src_folder, out_folder))
             continue
-        stem = os.path.splitext(os.path.basename(os.fspath(out_path)))[0]
-        copy = os.path.join(out_folder, f"{stem}{'_' + str(len(written) + 1) if written else ''}"
-                                        ".mtl")
-        if os.path.abspath(copy) == os.path.abspath(mtl):  # the source's own: already valid
-            out.append(os.path.basename(copy))
-            continue
-        _copy_mtl(mtl, copy)
+        copy = _free_mtl_name(out_folder, stem, mtl, sources | set(written))
+        if copy != mtl:  # else the source's own, beside the output already: valid as it is
+            _copy_mtl(mtl, copy)
         written.append(copy)
         out.append(os.path.basename(copy))
     return " ".join(["mtllib", *out])
+
+
+def _mtllib_names(line, src_folder):
+    rest = line.split("#", 1)[0].split(None, 1)[1].strip() if len(line.split()) > 1 else ""
+    if " " in rest and os.path.isfile(os.path.join(src_folder, rest)):
+        return [rest]
+    return rest.split()
+
+
+def _beside(name, folder):
+    return name if os.path.isabs(name) else os.path.join(folder, name)
+
+
+def _free_mtl_name(out_folder, stem, mtl, taken):
+    """``<stem>.mtl``, ``<stem>_2.mtl``...: the first that is ``mtl`` itself or is neither
+    one of the source's material files nor already named by the output (``taken``)."""
+    for k in range(1, len(taken) + 2):
+        copy = os.path.join(out_folder, f"{stem}{'' if k == 1 else f'_{k}'}.mtl")
+        if copy == mtl or copy not in taken:
+            return copy
+    raise AssertionError("unreachable: more names than taken ones")
 
 
 _MTL_MAPS = ("map_", "bump", "disp", "decal", "refl", "norm")
@@ -234,12 +343,13 @@ def _copy_mtl(mtl, copy):
     """Copy a material file with every texture path made relative to the copy's folder."""
     folder, out_folder = os.path.dirname(os.path.abspath(mtl)), os.path.dirname(copy)
     lines = []
-    for line in read_text(mtl, MeshFileError).splitlines():
+    for line in _text(mtl).splitlines():
         parts = line.split()
         if parts and parts[0].lower().startswith(_MTL_MAPS) and len(parts) > 1:
             line = _map_line(line, parts, folder, out_folder)
         lines.append(line)
-    with atomic_output(copy) as tmp, open(tmp, "w", encoding="utf-8") as handle:
+    with atomic_output(copy) as tmp, open(tmp, "w", encoding="utf-8",
+                                                   errors="surrogateescape") as handle:
         handle.write("\n".join(lines) + "\n")
 
 
@@ -258,22 +368,22 @@ def _map_line(line, parts, folder, out_folder):
 
 
 def _texture_beside(path, out_folder):
-    """The name of ``path``'s texture in ``out_folder``: a copy under its own name, or
-    ``<stem>_2<ext>``... when another file has that name;
-    a file already there with the same bytes is reused. Readers such as trimesh refuse
-    texture paths that leave the model's folder, so a texture from elsewhere is put beside it."""
+    """The name of ``path``'s texture in ``out_folder``: a copy under its own name, reused
+    when a file of that name there has the same bytes, else ``<stem>-<8 hex digits of its
+    SHA-1><ext>`` (collections of models all naming their texture ``texture0.jpg`` get one
+    copy of each). Readers such as trimesh refuse texture paths that leave the model's
+    folder, so a texture from elsewhere is put beside it."""
     stem, ext = os.path.splitext(os.path.basename(path))
-    for k in range(1, 1000):
-        name = f"{stem}{'' if k == 1 else f'_{k}'}{ext}"
+    name = os.path.basename(path)
+    dest = os.path.join(out_folder, name)
+    if os.path.exists(dest) and not filecmp.cmp(dest, path, shallow=False):
+        digest = hashlib.sha1(read_bytes(path, MeshFileError)).hexdigest()[:8]
+        name = f"{stem}-{digest}{ext}"
         dest = os.path.join(out_folder, name)
-        if os.path.exists(dest):
-            if filecmp.cmp(dest, path, shallow=False):
-                return name
-            continue
+    if not os.path.exists(dest):
         with atomic_output(dest) as tmp:  # a copy, not a link: editing it must not
             shutil.copyfile(path, tmp)     # change the source's texture
-        return name
-    raise InputError(f"too many textures named {stem}{ext} in the folder", out_folder)
+    return name
 
 
 def _relative(name, src_folder, out_folder):
@@ -285,26 +395,29 @@ def _relative(name, src_folder, out_folder):
 
 def _obj_corners(lines, n_vertices, source):
     """Per face: its corners' ``(vertex, normal)`` 0-based indices (normal -1 if none);
-    and the source's normals (k, 3)."""
-    corners, normals, seen_v = [], [], 0
+    and the source's normals (k, 3). Positive normal indices may point forward (``vn``
+    records after the faces), negative ones count back from the face's line."""
+    normals = []
     for number, line in enumerate(lines, 1):
         parts = line.split("#", 1)[0].split()
-        if not parts:
-            continue
-        if parts[0] == "v":
-            seen_v += 1
-        elif parts[0] == "vn":
+        if parts[:1] == ["vn"]:
             try:
                 normals.append([float(x) for x in parts[1:4]])
             except ValueError:
                 raise MeshFileError(f"line {number}: a normal needs 3 numbers", source) from None
-        elif parts[0] == "f":
-            corners.append([_corner(token, seen_v, len(normals), number, source)
+    corners, seen_v, seen_n = [], 0, 0
+    for number, line in enumerate(lines, 1):
+        parts = line.split("#", 1)[0].split()
+        key = parts[0] if parts else ""
+        seen_v += key == "v"
+        seen_n += key == "vn"
+        if key == "f":
+            corners.append([_corner(token, seen_v, seen_n, len(normals), number, source)
                             for token in parts[1:]])
     return corners, np.asarray(normals, dtype=np.float64).reshape(-1, 3)
 
 
-def _corner(token, seen_v, seen_n, number, source):
+def _corner(token, seen_v, seen_n, total_n, number, source):
     fields = token.split("/")
     v = int(fields[0])
     v = v - 1 if v > 0 else v + seen_v
@@ -312,7 +425,7 @@ def _corner(token, seen_v, seen_n, number, source):
     if len(fields) >= 3 and fields[2]:
         n = int(fields[2])
         n = n - 1 if n > 0 else n + seen_n
-        if not 0 <= n < seen_n:
+        if not 0 <= n < total_n:
             raise MeshFileError(f"line {number}: normal index {fields[2]} is out of range",
                                 source)
     return v, n
@@ -414,10 +527,19 @@ def _ply_vertex_normals(V0, V1, F0, data, fmt, elements, pos, source):
     columns, _, _ = _ply_vertex(data, fmt, elements, pos)
     if not all(k in columns for k in ("nx", "ny", "nz")):
         return None
-    from cagekit.geometry.normal_transport import transported_normals
-
     N = np.column_stack([np.asarray(columns[k], dtype=np.float64) for k in ("nx", "ny", "nz")])
-    return transported_normals(V0, V1, F0, N[F0], F0)
+    return _carried_vertex_normals(V0, V1, F0, N)
+
+
+def _carried_vertex_normals(V0, V1, F, N):
+    """Per-vertex normals ``N`` carried through ``V0 -> V1`` (a vertex no face uses keeps
+    its normal)."""
+    from cagekit.geometry.normal_transport import transported_normals  # igl, scipy: lazily
+
+    carried = transported_normals(V0, V1, F, N[F], F, n_groups=len(V0))
+    unused = ~np.isin(np.arange(len(V0)), F)
+    carried[unused] = N[unused]
+    return carried
 
 
 def _ply_ascii_with(body, elements, V, normals):
@@ -462,8 +584,7 @@ def _ply_binary_with(data, pos, fmt, elements, V, normals):
 def _write_glb(path, V, V0, F0, source):
     import trimesh
 
-    from cagekit.geometry.normal_transport import transported_normals
-
+    _warn_unwritable_gltf(source, path)
     scene = trimesh.load(os.fspath(source), process=False, maintain_order=True, force="scene")
     offset, instanced = 0, _instanced(scene)
     for node in list(scene.graph.nodes_geometry):
@@ -480,12 +601,14 @@ def _write_glb(path, V, V0, F0, source):
         rest_local = np.asarray(mesh.vertices, dtype=np.float64)
         copy.vertices = local
         faces = np.asarray(mesh.faces, dtype=np.int64)
-        copy.vertex_normals = transported_normals(rest_local, local, faces, rest_normals[faces],
-                                                  faces)
-        if name in instanced:  # each instance gets its own moved copy
+        copy.vertex_normals = _carried_vertex_normals(rest_local, local, faces, rest_normals)
+        if name in instanced:  # each instance gets its own moved copy, under its own parent
             name = f"{name}__{node}"
-            scene.graph.update(node, geometry=name)
+            scene.graph.transforms.node_data[node]["geometry"] = name
         scene.geometry[name] = copy
+    for name in instanced:  # every instance has its copy now
+        scene.geometry.pop(name, None)
+    scene.graph._cache.clear()  # nodes_geometry and friends are cached on the graph
     _children_as_read(scene)
     data = trimesh.exchange.gltf.export_glb(scene, include_normals=True)
     with atomic_output(path) as tmp:
@@ -494,6 +617,27 @@ def _write_glb(path, V, V0, F0, source):
         if not _same_up_to_float32(load_mesh(tmp)[0], V):  # the safety net of the above
             raise MeshFileError("cannot be written as GLB keeping the vertex order of "
                                 f"{os.fspath(source)}; write OBJ or PLY", path)
+
+
+def _warn_unwritable_gltf(source, path):
+    """One warning when the glTF source has what trimesh cannot write: skins, animations,
+    morph targets (a rig's result keeps its posed surface only)."""
+    data = read_bytes(source, MeshFileError)
+    if data[:4] == b"glTF":  # binary: the JSON chunk follows the 12-byte header
+        length = int.from_bytes(data[12:16], "little")
+        data = data[20:20 + length]
+    try:
+        header = json.loads(data.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError):
+        return  # trimesh read it; nothing more to say
+    lost = [word for key, word in (("skins", "skins"), ("animations", "animations"))
+            if header.get(key)]
+    if any(p.get("targets") for m in header.get("meshes", []) for p in m.get("primitives", [])):
+        lost.append("morph targets")
+    if lost:
+        warnings.warn(MeshFileWarning(
+            f"{os.fspath(path)}: the {', '.join(lost)} of {os.fspath(source)} are not kept "
+            "(the GLB result is the deformed surface with its materials)"), stacklevel=4)
 
 
 def _children_as_read(scene):

@@ -9,7 +9,15 @@ from PIL import Image
 from scipy.spatial.transform import Rotation
 
 from cagekit.errors import InputError, MeshFileWarning
-from cagekit.io import asset_contents, load_mesh, save_deformed, save_mesh
+from cagekit.io import (
+    asset_contents,
+    kept_extension,
+    load_mesh,
+    move_deformed,
+    remove_deformed,
+    save_deformed,
+    save_mesh,
+)
 
 R = Rotation.from_euler("xyz", [30, -50, 70], degrees=True).as_matrix()
 
@@ -171,3 +179,109 @@ def test_a_result_with_another_vertex_count_is_refused(textured_obj, tmp_path):
     with pytest.raises(InputError, match="keeps the source's vertices"):
         save_deformed(tmp_path / "moved.obj", V[:-1], F[:2], textured_obj)
     assert not (tmp_path / "moved.obj").exists()
+
+
+def test_ply_normals_of_unused_vertices_are_kept_and_the_others_carried(tmp_path):
+    source = tmp_path / "loose.ply"
+    rows = ["0 0 0 0 0 1", "9 9 9 1 0 0", "1 0 0 0 0 1", "0 1 0 0 0 1", "5 5 5 0 1 0"]
+    source.write_text("ply\nformat ascii 1.0\nelement vertex 5\nproperty double x\n"
+                      "property double y\nproperty double z\nproperty float nx\n"
+                      "property float ny\nproperty float nz\nelement face 1\n"
+                      "property list uchar int vertex_indices\nend_header\n"
+                      + "\n".join(rows) + "\n3 0 2 3\n")
+    V, F = load_mesh(source)
+    save_deformed(tmp_path / "moved.ply", _moved(V), F, source)
+    back = trimesh.load(tmp_path / "moved.ply", process=False)
+    np.testing.assert_allclose(back.vertex_normals[[0, 2, 3]], np.tile(R @ [0, 0, 1], (3, 1)),
+                               atol=1e-6)
+    np.testing.assert_allclose(back.vertex_normals[[1, 4]], [[1, 0, 0], [0, 1, 0]], atol=1e-6)
+
+
+def test_several_material_files_beside_the_source_never_replace_its_own(textured_obj):
+    folder = textured_obj.parent
+    (folder / "extra.mtl").write_text("newmtl extra\nKd 0 1 0\n")
+    text = textured_obj.read_text().replace("mtllib cube.mtl", "mtllib moved.mtl extra.mtl")
+    (folder / "moved.mtl").write_text("newmtl mine\nKd 1 0 0\n")  # the source's own
+    source = folder / "two.obj"
+    source.write_text(text)
+    before = {p.name: p.read_bytes() for p in folder.glob("*.mtl")}
+    V, F = load_mesh(source)
+    save_deformed(folder / "moved.obj", _moved(V), F, source)
+    assert {p.name: p.read_bytes() for p in folder.glob("*.mtl") if p.name in before} == before
+    assert _records(folder / "moved.obj", "mtllib") == ["mtllib moved.mtl moved_2.mtl"]
+    assert "newmtl extra" in (folder / "moved_2.mtl").read_text()
+
+
+def test_a_texture_named_like_another_gets_its_content_hash(textured_obj, tmp_path):
+    out = tmp_path / "results"
+    out.mkdir()
+    Image.new("RGB", (8, 8), (0, 0, 255)).save(out / "wood.png")  # another wood.png there
+    V, F = load_mesh(textured_obj)
+    save_deformed(out / "moved.obj", _moved(V), F, textured_obj)
+    maps = [line.split()[-1] for line in (out / "moved.mtl").read_text().splitlines()
+            if line.startswith("map_Kd")]
+    assert len(maps) == 1 and maps[0].startswith("wood-") and maps[0].endswith(".png")
+    assert (out / maps[0]).read_bytes() == (textured_obj.parent / "maps/wood.png").read_bytes()
+    save_deformed(out / "again.obj", _moved(V), F, textured_obj)  # reused, not copied again
+    assert sorted(p.name for p in out.glob("wood*.png")) == sorted(["wood.png", maps[0]])
+
+
+def test_a_result_moved_or_removed_takes_its_material_file_along(textured_obj, tmp_path):
+    first, second = tmp_path / "variations", tmp_path / "rejected"
+    first.mkdir()
+    second.mkdir()
+    V, F = load_mesh(textured_obj)
+    save_deformed(first / "a__b.obj", _moved(V), F, textured_obj)
+    move_deformed(first / "a__b.obj", second / "a__b.obj")
+    assert not (first / "a__b.mtl").exists() and (first / "wood.png").exists()
+    scene = trimesh.load(second / "a__b.obj")
+    assert any(getattr(g.visual.material, "image", None) is not None
+               for g in scene.geometry.values())
+    remove_deformed(second / "a__b.obj")
+    assert sorted(p.name for p in second.iterdir()) == ["wood.png"]
+
+
+def test_obj_normals_listed_after_the_faces_and_latin1_names_round_trip(tmp_path):
+    folder = tmp_path / "src"
+    folder.mkdir()
+    (folder / "bo\xeete.mtl".encode("latin-1").decode("utf-8", "surrogateescape")).write_bytes(
+        b"newmtl m\nKd 1 1 1\n")
+    body = (b"mtllib bo\xeete.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl m\n"
+            b"f 1//1 2//1 3//1\nvn 0 0 1\n")
+    source = folder / "tri.obj"
+    source.write_bytes(body)
+    V, F = load_mesh(source)
+    out = tmp_path / "moved.obj"
+    save_deformed(out, _moved(V), F, source)
+    written = out.read_bytes()
+    assert b"f 1//1 2//2 3//3" in written  # one normal per (vertex, normal) pair
+    normals = [[float(x) for x in line.split()[1:]]
+               for line in written.decode().splitlines() if line.startswith("vn ")]
+    np.testing.assert_allclose(normals, np.tile(R @ [0, 0, 1], (3, 1)), atol=1e-12)
+    assert (tmp_path / "moved.mtl").read_bytes() == b"newmtl m\nKd 1 1 1\n"
+
+
+def test_glb_instances_under_a_moved_parent_each_get_their_own_copy(tmp_path):
+    scene = trimesh.Scene()
+    parent = np.eye(4)
+    parent[:3, 3] = [0, 5, 0]
+    scene.graph.update("parent", frame_from=scene.graph.base_frame, matrix=parent)
+    box = trimesh.creation.box(extents=[1, 1, 1])
+    for node, x in (("a", -2.0), ("b", 2.0)):
+        placed = np.eye(4)
+        placed[0, 3] = x
+        scene.add_geometry(box, geom_name="box", node_name=node, parent_node_name="parent",
+                           transform=placed)
+    source = tmp_path / "instanced.glb"
+    source.write_bytes(trimesh.exchange.gltf.export_glb(scene))
+    V, F = load_mesh(source)
+    assert len(V) == 16
+    moved = V.copy()
+    moved[:8] *= 1.5  # the two instances move differently
+    save_deformed(tmp_path / "moved.glb", moved, F, source)
+    np.testing.assert_allclose(load_mesh(tmp_path / "moved.glb")[0], moved, atol=1e-5)
+
+
+def test_kept_extension_follows_the_formats_that_keep_an_asset():
+    assert [kept_extension(n) for n in ("a.obj", "a.PLY", "a.gltf", "a.glb", "a.off")] == \
+        [".obj", ".ply", ".glb", ".glb", ".obj"]
