@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cagekit.errors import InputError
 from cagekit.io.files import atomic_output
 from cagekit.render import render_meshes
 
@@ -133,13 +134,13 @@ def draw_contact_sheet(tiles: Sequence[Tile], path: str | os.PathLike,
 
     Raises
     ------
-    ValueError
+    InputError
         No tiles.
     """
     from matplotlib.figure import Figure
 
     if not tiles:
-        raise ValueError("a contact sheet needs at least one tile")
+        raise InputError("a contact sheet needs at least one tile")
     width, height = sheet_size(len(tiles), columns)
     across = width // TILE_SIZE[0]
     fig = Figure(figsize=(width / _DPI, height / _DPI), dpi=_DPI)

@@ -13,6 +13,8 @@ from collections.abc import Sequence
 
 from numpy.typing import ArrayLike
 
+from cagekit.errors import InputError
+
 __all__ = ["MAX_POSES", "PER_LINE", "PANEL", "grid_columns", "transfer_grid"]
 
 #: poses drawn at most (with the rest pose: two lines of :data:`PER_LINE` columns)
@@ -85,7 +87,7 @@ def transfer_grid(path: str | os.PathLike[str], template_rest: _Mesh, character_
     from cagekit.render import render_grid
 
     if not len(template_poses) == len(character_poses) == len(names):
-        raise ValueError("one template pose and one character pose per name")
+        raise InputError("one template pose and one character pose per name")
     lines, left_out = grid_columns(names, max_poses, per_line)
     rows, titles, captions = [], [], []
     for line in lines:

@@ -17,6 +17,7 @@ from cagekit.batch.sheet import (
     status_colour,
 )
 from cagekit.datasets import synthetic
+from cagekit.errors import InputError
 from cagekit.io import save_mesh
 
 TETRA = (np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]]),
@@ -90,5 +91,5 @@ def test_the_drawn_sheet_has_its_size_and_each_tile_its_status_colour(tmp_path):
     assert has(red, 0, 0) and not has(green, 0, 0)  # tile 0: rejected
     assert has(green, 0, 1) and not has(red, 0, 1)  # tile 1: ok
     assert not has(red, 2, 1) and not has(green, 2, 1)  # no tile 7: blank
-    with pytest.raises(ValueError, match="at least one tile"):
+    with pytest.raises(InputError, match="at least one tile"):
         draw_contact_sheet([], tmp_path / "empty.png")

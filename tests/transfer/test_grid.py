@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 from matplotlib.image import imread
 
+from cagekit.errors import InputError
 from cagekit.transfer.grid import PANEL, grid_columns, transfer_grid
 
 V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
@@ -42,5 +43,5 @@ def test_the_picture_is_larger_and_says_what_it_leaves_out(tmp_path, monkeypatch
 
 
 def test_one_pose_per_name():
-    with pytest.raises(ValueError, match="one template pose"):
+    with pytest.raises(InputError, match="one template pose"):
         transfer_grid("x.png", (V, F), (V, F), [(V, F)], [], ["a"])
