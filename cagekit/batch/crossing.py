@@ -9,7 +9,9 @@ triangle-triangle test over the whole variation (libigl's CGAL
 the intersecting face pairs; a pair counts when its two faces did not intersect in the
 source and were farther apart there than :data:`TOUCH_GAP` of the source's bounding-box
 diagonal (exact triangle-to-triangle distance). Faces that touch in the source (a cushion
-on a seat, a leg glued to a rail, two faces of one corner) never count. The counted pairs
+on a seat, a leg glued to a rail, two faces of one corner) never count, nor do two parts
+that already pass through each other in the source (a leg pushed into its seat, which the
+variation may push a little deeper). The counted pairs
 are reported by part: the source's connected components through its faces, numbered in the
 order of their first face; a part may cross itself (the front and back legs of one
 side-frame brought together). :func:`cagekit.batch.amplify.amplify` rejects a variation
@@ -120,7 +122,8 @@ def part_crossings(V_src: ArrayLike, F_src: ArrayLike, V_out: ArrayLike,
     parts = int(labels.max()) + 1 if len(labels) else 0
     if parts == 0:
         return Crossings((), parts)
-    new = _intersecting_faces(Vo, F) - _intersecting_faces(Vs, F)
+    at_rest = _intersecting_faces(Vs, F)
+    new = _intersecting_faces(Vo, F) - at_rest
     if not new:
         return Crossings((), parts)
     faces = np.array(sorted(new), dtype=np.int64).reshape(-1, 2)
@@ -128,7 +131,20 @@ def part_crossings(V_src: ArrayLike, F_src: ArrayLike, V_out: ArrayLike,
     apart = _triangle_distances(Vs[F[faces[:, 0]]], Vs[F[faces[:, 1]]]) > tolerance
     a, b = labels[faces[apart, 0]], labels[faces[apart, 1]]
     pairs = set(zip((np.minimum(a, b) + 1).tolist(), (np.maximum(a, b) + 1).tolist()))
-    return Crossings(tuple(sorted(pairs)), parts)
+    return Crossings(tuple(sorted(pairs - _joined_parts(at_rest, labels))), parts)
+
+
+def _joined_parts(face_pairs, labels) -> set[tuple[int, int]]:
+    """The pairs of distinct parts (numbered from 1) that already pass through each other
+    in the source (a leg pushed into its seat): they touch, and pushing one deeper into
+    the other is no crossing."""
+    if not face_pairs:
+        return set()
+    faces = np.array(sorted(face_pairs), dtype=np.int64).reshape(-1, 2)
+    a, b = labels[faces[:, 0]], labels[faces[:, 1]]
+    distinct = a != b
+    return set(zip((np.minimum(a, b)[distinct] + 1).tolist(),
+                   (np.maximum(a, b)[distinct] + 1).tolist()))
 
 
 def _checked(V_src, F_src, V_out):

@@ -66,6 +66,22 @@ def test_parts_touching_in_the_source_never_count():
     assert part_crossings(V, F, pushed, gap=0.0).pairs == ((1, 2),)
 
 
+def test_parts_passing_through_each_other_in_the_source_may_go_deeper():
+    # a leg pushed into its seat at rest (a tall box through a flat one); the variation
+    # pushes it deeper: no crossing. A third part brought through the seat is one.
+    seat = trimesh.creation.box(extents=(2.0, 0.2, 2.0))
+    leg = trimesh.creation.box(extents=(0.2, 2.0, 0.2))
+    other = trimesh.creation.box(extents=(0.2, 0.5, 0.2))
+    V = np.vstack([seat.vertices, leg.vertices + [0, -0.95, 0], other.vertices + [0.7, 1, 0]])
+    F = np.vstack([seat.faces, leg.faces + 8, other.faces + 16])
+    deeper = V.copy()
+    deeper[8:16, 1] += 0.3
+    assert part_crossings(V, F, deeper).count == 0
+    through = deeper.copy()
+    through[16:, 1] -= 1.0
+    assert part_crossings(V, F, through).pairs == ((1, 3),)
+
+
 def test_a_part_crossing_itself_is_found():
     V, F = legs()
     # the two legs' tops joined by a strip: one part, a side frame of two legs
