@@ -9,7 +9,6 @@ points, or a seeded subset of them.
 from __future__ import annotations
 
 import numpy as np
-import trimesh
 from numpy.typing import ArrayLike
 
 from cagekit.errors import InputError
@@ -79,6 +78,8 @@ def sample_surface(
     n = as_count(n, "n", 0)
     if not face_areas(V, F).sum() > 0.0:
         raise InputError("cannot sample a surface of zero total area")
+    import trimesh  # 0.5 s to import: only when sampling
+
     mesh = trimesh.Trimesh(vertices=V, faces=F, process=False, validate=False)
     points, face_index = trimesh.sample.sample_surface(
         mesh, n, seed=np.random.default_rng(seed)

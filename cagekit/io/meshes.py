@@ -29,7 +29,6 @@ import struct
 import warnings
 
 import numpy as np
-import trimesh
 from numpy.typing import ArrayLike
 
 from cagekit.errors import InputError, MeshFileError, MeshFileWarning
@@ -539,6 +538,8 @@ def _read_ply(path):
 
 
 def _read_with_trimesh(path):
+    import trimesh  # 0.5 s to import: only for the formats that need it
+
     check_file(path, MeshFileError)
     loaded = trimesh.load(
         os.fspath(path), file_type=extension(path)[1:], process=False, maintain_order=True
@@ -747,6 +748,8 @@ def _write_ply(tmp, V, F=None):
 
 
 def _write_with_trimesh(tmp, V, F):
+    import trimesh
+
     mesh = trimesh.Trimesh(vertices=V, faces=F, process=False)
     with open(tmp, "wb") as fh:
         fh.write(mesh.export(file_type=extension(tmp)[1:]))

@@ -3,10 +3,12 @@
 import json
 import os
 import shutil
+import subprocess
+import sys
 
 import numpy as np
 import pytest
-from builders import CAGE, DEFORMED, SHAPE, assert_bad_input, cagekit, load_obj
+from builders import CAGE, DEFORMED, REPOSITORY, SHAPE, assert_bad_input, cagekit, load_obj
 
 
 @pytest.fixture(scope="module")
@@ -630,3 +632,16 @@ def test_apply_suggests_o_for_an_output_given_as_a_positional(bad_files):
     assert_bad_input(result, "Did you mean `-o new.png`?")
     result = cagekit("render", "shape.obj", "shape.obj", cwd=bad_files)  # both exist
     assert "Did you mean" not in result.stderr
+
+
+def test_apply_imports_no_trimesh_for_obj_files(tmp_path):
+    # trimesh takes about 0.5 s to import; reading and writing OBJ, binding and deforming
+    # need none of it (it is imported for STL, GLB and surface sampling only)
+    code = ("import sys; from cagekit.cli import main\n"
+            "try:\n    main(sys.argv[1:], prog_name='cagekit')\n"
+            "except SystemExit as e:\n    assert e.code == 0, e.code\n"
+            "assert 'trimesh' not in sys.modules, 'trimesh was imported'\n")
+    args = ["apply", str(SHAPE), str(CAGE), str(DEFORMED), "-o", str(tmp_path / "out.obj")]
+    done = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True,
+                          cwd=REPOSITORY)
+    assert done.returncode == 0, done.stderr
