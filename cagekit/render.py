@@ -25,7 +25,7 @@ from numpy.typing import ArrayLike
 
 from cagekit.cage import unique_edges
 from cagekit.geometry import as_shape
-from cagekit.io.files import atomic_output
+from cagekit.io.files import atomic_output, distinct_tails
 
 __all__ = ["MAX_FACES", "MAX_POINTS", "render_meshes", "render_grid",
            "shortest_unique_names"]
@@ -66,15 +66,8 @@ def shortest_unique_names(paths: Sequence[str | os.PathLike]) -> list[str]:
     >>> shortest_unique_names(["out/girl/pose_003.obj", "out/suit/pose_003.obj", "rest.obj"])
     ['girl/pose_003.obj', 'suit/pose_003.obj', 'rest.obj']
     """
-    parts = [os.path.normpath(os.fspath(p)).replace(os.sep, "/").split("/") for p in paths]
-    names = []
-    for i, own in enumerate(parts):
-        others = [p for j, p in enumerate(parts) if j != i and p != own]
-        k = 1
-        while k < len(own) and any(p[-k:] == own[-k:] for p in others):
-            k += 1
-        names.append("/".join(own[-k:]))
-    return names
+    return distinct_tails([os.path.normpath(os.fspath(p)).replace(os.sep, "/").split("/")
+                           for p in paths])
 
 
 def _to_display(V: np.ndarray, up: str) -> np.ndarray:

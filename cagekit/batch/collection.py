@@ -19,6 +19,7 @@ import numpy as np
 from cagekit.datasets.synthetic import FAMILIES
 from cagekit.errors import InputError
 from cagekit.io import SUPPORTED_MESH_EXTENSIONS, load_mesh
+from cagekit.io.files import distinct_tails
 
 __all__ = ["SYNTHETIC_PREFIX", "Shape", "file_hash", "find_shapes", "load_shape_of",
            "short_names"]
@@ -214,13 +215,7 @@ def short_names(names: Iterable[str]) -> dict[str, str]:
     if len(names) > 1:
         lead, tail = _shared_ends(list(parts.values()))
         parts = {name: p[lead:len(p) - tail] for name, p in parts.items()}
-    short = {}
-    for name, own in parts.items():
-        others = [p for n, p in parts.items() if n != name]
-        k = 1
-        while k < len(own) and any(p[-k:] == own[-k:] for p in others):
-            k += 1
-        short[name] = "/".join(own[-k:])
+    short = dict(zip(parts, distinct_tails(list(parts.values()))))
     counts = Counter(short.values())
     return {name: name if counts[value] > 1 else value for name, value in short.items()}
 

@@ -13,17 +13,48 @@ import os
 import re
 import secrets
 import stat
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 
 from cagekit.errors import InputError
 
-__all__ = ["atomic_output", "check_file", "extension", "one_line", "output_folder",
-           "read_bytes", "read_text"]
+__all__ = ["atomic_output", "check_file", "distinct_tails", "extension", "one_line",
+           "output_folder", "read_bytes", "read_text"]
 
 
 def extension(path: str | os.PathLike) -> str:
     """The lower-case extension of ``path`` with its dot (``".obj"``), or ``""``."""
     return os.path.splitext(os.fspath(path))[1].lower()
+
+
+def distinct_tails(paths: Sequence[Sequence[str]]) -> list[str]:
+    """Each path's shortest trailing run of parts that no other path ends with, ``/``-joined.
+
+    The whole path where no shorter tail tells it apart; an identical path does not count
+    as another (it gets the same name).
+
+    Parameters
+    ----------
+    paths : sequence of sequence of str
+        Paths split into their parts (folders, then the file).
+
+    Returns
+    -------
+    list of str
+        One name per path, in order.
+
+    Examples
+    --------
+    >>> distinct_tails([["out", "girl", "a.obj"], ["out", "suit", "a.obj"], ["b.obj"]])
+    ['girl/a.obj', 'suit/a.obj', 'b.obj']
+    """
+    names = []
+    for i, own in enumerate(paths):
+        others = [p for j, p in enumerate(paths) if j != i and list(p) != list(own)]
+        k = 1
+        while k < len(own) and any(list(p[-k:]) == list(own[-k:]) for p in others):
+            k += 1
+        names.append("/".join(own[-k:]))
+    return names
 
 
 def one_line(exc: BaseException) -> str:
