@@ -88,12 +88,12 @@ def save_deformed(path: str | os.PathLike, V: ArrayLike, F: ArrayLike,
     V = valid_vertices(V, path)
     F = valid_faces(F, len(V), path)
     out_ext, src_ext = extension(path), extension(source)
-    if out_ext not in _KEEPS.get(src_ext, ()) or not asset_contents(source):
-        lost = asset_contents(source)
-        if lost:
+    carried = asset_contents(source)
+    if out_ext not in _KEEPS.get(src_ext, ()) or not carried:
+        if carried:
             keeps = "/".join(e[1:].upper() for e in _KEEPS[src_ext])
             warnings.warn(MeshFileWarning(
-                f"{os.fspath(path)}: {', '.join(lost)} of {os.fspath(source)} are not kept "
+                f"{os.fspath(path)}: {', '.join(carried)} of {os.fspath(source)} are not kept "
                 f"in {out_ext[1:].upper() or 'this format'}; write {keeps} to keep them"),
                 stacklevel=2)
         save_mesh(path, V, F)
@@ -159,9 +159,8 @@ def _own_material_files(path):
         return []
     folder, found = os.path.dirname(os.path.abspath(os.fspath(path))), []
     for line in _text(path).splitlines():
-        parts = line.split("#", 1)[0].split()
-        if parts[:1] == ["mtllib"]:
-            found += [os.path.join(folder, name) for name in parts[1:]
+        if line.split()[:1] == ["mtllib"]:
+            found += [os.path.join(folder, name) for name in _mtllib_names(line, folder)
                       if "/" not in name and os.path.isfile(os.path.join(folder, name))]
     return found
 
@@ -259,27 +258,25 @@ def _obj_lines(source):
 
 def _write_obj(path, V, V0, F0, source):
     lines = _obj_lines(source)
-    corners, normals = _obj_corners(lines, len(V0), source)
+    corners, normals = _obj_corners(lines, source)
     pairs, new_normals = _obj_carried_normals(V0, V, corners, normals)
     src_folder = os.path.dirname(os.path.abspath(os.fspath(source)))
     text, vertex, normals_written, face, materials = [], 0, False, 0, []
     for line in lines:
         parts = line.split("#", 1)[0].split()
         key = parts[0] if parts else ""
+        if key in ("vn", "f") and not normals_written:
+            # every carried normal where the first normal, or else the first face, stood
+            text += [f"vn {x:.17g} {y:.17g} {z:.17g}" for x, y, z in new_normals]
+            normals_written = True
         if key == "v":
-            rest = line.split("#", 1)[0].split()[4:]
-            text.append(" ".join(["v", *(f"{x:.17g}" for x in V[vertex]), *rest]))
+            text.append(" ".join(["v", *(f"{x:.17g}" for x in V[vertex]), *parts[4:]]))
             vertex += 1
-        elif key == "vn" or (key == "f" and not normals_written and len(new_normals)):
-            if not normals_written:  # every carried normal where the first one stood
-                text += [f"vn {x:.17g} {y:.17g} {z:.17g}" for x, y, z in new_normals]
-                normals_written = True
-            if key == "f":
-                text.append(_obj_face(parts, pairs[face]))
-                face += 1
         elif key == "f":
             text.append(_obj_face(parts, pairs[face]))
             face += 1
+        elif key == "vn":
+            pass  # replaced by the carried normals above
         elif key == "mtllib":
             text.append(_mtllib(line, src_folder, path, materials))
         else:
@@ -393,7 +390,7 @@ def _relative(name, src_folder, out_folder):
     return os.path.relpath(os.path.join(src_folder, name), out_folder).replace(os.sep, "/")
 
 
-def _obj_corners(lines, n_vertices, source):
+def _obj_corners(lines, source):
     """Per face: its corners' ``(vertex, normal)`` 0-based indices (normal -1 if none);
     and the source's normals (k, 3). Positive normal indices may point forward (``vn``
     records after the faces), negative ones count back from the face's line."""
@@ -497,12 +494,16 @@ def _write_ply(path, V, V0, F0, source):
     fmt, elements, pos = ply_header(data, source)
     if any(c is not None for n, _, props in elements if n == "vertex" for _, _, c in props):
         raise MeshFileError("has a list property in its vertex element; cannot keep it", source)
-    normals = _ply_vertex_normals(V0, V, F0, data, fmt, elements, pos, source)
+    columns, start, end = _ply_vertex(data, fmt, elements, pos)
+    normals = None
+    if all(k in columns for k in ("nx", "ny", "nz")):
+        N = np.column_stack([np.asarray(columns[k], dtype=np.float64) for k in ("nx", "ny", "nz")])
+        normals = _carried_vertex_normals(V0, V, F0, N)
     if fmt == "ascii":
         body = _ply_ascii_with(data[pos:].decode("ascii"), elements, V, normals)
         payload = data[:pos] + body.encode("ascii")
     else:
-        payload = _ply_binary_with(data, pos, fmt, elements, V, normals)
+        payload = _ply_binary_with(data, start, end, fmt, elements, V, normals)
     with atomic_output(path) as tmp, open(tmp, "wb") as handle:
         handle.write(payload)
 
@@ -521,14 +522,6 @@ def _ply_vertex(data, fmt, elements, pos):
         if name == "vertex":
             return columns, start, at
     raise AssertionError("no vertex element")  # load_mesh has read it already
-
-
-def _ply_vertex_normals(V0, V1, F0, data, fmt, elements, pos, source):
-    columns, _, _ = _ply_vertex(data, fmt, elements, pos)
-    if not all(k in columns for k in ("nx", "ny", "nz")):
-        return None
-    N = np.column_stack([np.asarray(columns[k], dtype=np.float64) for k in ("nx", "ny", "nz")])
-    return _carried_vertex_normals(V0, V1, F0, N)
 
 
 def _carried_vertex_normals(V0, V1, F, N):
@@ -564,8 +557,8 @@ def _ply_ascii_with(body, elements, V, normals):
     return "\n".join(lines)
 
 
-def _ply_binary_with(data, pos, fmt, elements, V, normals):
-    _, start, end = _ply_vertex(data, fmt, elements, pos)
+def _ply_binary_with(data, start, end, fmt, elements, V, normals):
+    """The binary data with the vertex records (bytes ``start:end``) rewritten."""
     endian = "<" if fmt == "binary_little_endian" else ">"
     props = next(props for name, _, props in elements if name == "vertex")
     dtype = np.dtype([(name, endian + kind) for name, kind, _ in props])
