@@ -59,7 +59,7 @@ def transported_normals(V0: ArrayLike, V1: ArrayLike, F: ArrayLike, corner_norma
     >>> V0 = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
     >>> V1 = V0 * [2.0, 1.0, 1.0]  # stretch along x: the face normal stays +z
     >>> n = np.tile([0.0, 0.0, 1.0], (1, 3, 1))
-    >>> transported_normals(V0, V1, [[0, 1, 2]], n, [[0, 0, 0]]).round(6).tolist()
+    >>> (transported_normals(V0, V1, [[0, 1, 2]], n, [[0, 0, 0]]).round(6) + 0.0).tolist()
     [[0.0, 0.0, 1.0]]
     """
     V0, V1, F, N, G = _checked(V0, V1, F, corner_normals, corner_groups)
