@@ -27,9 +27,24 @@ the same median rule. Where the surface around the contacts is as bent as the pi
 hem at the ankle, which the cage's joint bends with the leg) the piece keeps the cage's
 shape.
 
-Pieces are visited outward from the well-bound ones, so a shoe follows its hem after the
-hem has followed the leg. Given each vertex's rigid part (the humanoid's, from the nearest
-landmark), a piece follows only what it touched on its own part or the parts next to it
+A piece still off what it touched after that (its contacts on the piece it touched most
+farther than :data:`DETACHED` of the mesh's largest extent from their rest offsets, in the
+median: a hand that the cage pushed out through the skin it lay under) is fitted rigidly to
+those contacts instead (its rest shape, the best rotation and shift, Kabsch), when they
+spread in two directions by :data:`CONTACT_SPREAD` of its size (a wrist, not a thin cuff,
+which would turn a hand into its sleeve) and the fit leaves :data:`FIT_GAIN` of the gap or
+less.
+
+A *watched* piece is one the cage binds half well (:data:`WATCHED_MENDED` to
+:data:`LOOSE_MENDED` of it mended, at most :data:`WATCHED_SIZE` of the mesh): the cage
+moves it, unless it takes it off every piece it touched (by more than :data:`DETACHED`, in
+the median per touched piece): then it follows them like a loose piece (a shoe stretched
+forward off its trouser hem). Larger pieces are never watched: a trouser leg translated
+back to the pieces it touched went with the wrong one.
+
+Watched pieces are visited first, the larger first; then loose pieces outward from the
+well-bound ones, so a shoe follows its hem after the hem has followed the leg. Given each
+vertex's rigid part (the humanoid's, from the nearest landmark), a piece follows only what it touched on its own part or the parts next to it
 along the skeleton (:data:`cagekit.datasets.humanoid.RIGID_PARENTS`): a hand resting on the
 hip follows the wrist, not the hip.
 """
@@ -50,7 +65,8 @@ from cagekit.geometry.rotations import polar
 from cagekit.typed import Vertices
 
 __all__ = ["LoosePieces", "find_loose_pieces", "CONTACT", "CONTACT_PAIRS", "LOOSE_MENDED",
-           "LOOSE_SIZE", "BENT", "BENT_RATIO", "PATCH_REACH", "PATCH_SIZE"]
+           "LOOSE_SIZE", "BENT", "BENT_RATIO", "PATCH_REACH", "PATCH_SIZE", "DETACHED",
+           "WATCHED_MENDED", "WATCHED_SIZE", "CONTACT_SPREAD", "FIT_GAIN"]
 
 #: pieces touch where their vertices lie this close, in shares of the mesh's largest extent
 CONTACT = 0.01
@@ -71,6 +87,23 @@ BENT_RATIO = 1.5
 PATCH_REACH = 0.05
 #: fewest patch vertices to turn a bent piece by
 PATCH_SIZE = 10
+#: pieces with at least this share of their vertices mended (and under LOOSE_MENDED) are
+#: watched (0.25-0.45 did alike on the three real characters; 0.5: none, the suit's shoe
+#: stays off its hem)...
+WATCHED_MENDED = 0.25
+#: ...unless they have more than this share of the mesh's vertices (0.03-0.05 did alike;
+#: 0.1 took in trouser legs, which went with the wrong piece)
+WATCHED_SIZE = 0.03
+#: a piece is off what it touched when its touching pairs lie farther than this from their
+#: rest offsets (median, in shares of the mesh's largest extent; 0.02-0.03 did alike, 0.015
+#: fitted the suit's cuffs into their sleeves)
+DETACHED = 0.02
+#: a piece left off is fitted rigidly to its contacts when they spread this far in two
+#: directions (root mean square, in shares of the piece's size; 0.2-0.35 did alike)...
+CONTACT_SPREAD = 0.3
+#: ...and the fit leaves this share of the gap or less (0.35-0.5 did alike; 0.7 moved a
+#: piece of the girl's that straddles both feet off its shin)
+FIT_GAIN = 0.5
 
 
 @dataclass(frozen=True)
@@ -90,6 +123,12 @@ class LoosePieces:
     patches : tuple of (q_i,) int64
         Per piece, the well-bound vertices around its contacts whose best rotation turns
         it when the cage bent it (see the module); empty: never turned.
+    watched : tuple of bool
+        Per piece, True for a watched piece (moved only when the cage took it off every
+        piece it touched), False for a loose one; empty: all loose.
+    sides : tuple of (t_i,) int64
+        Per piece, which piece each touched vertex lies on (a label of the mesh's pieces);
+        empty: one piece.
     """
 
     n_vertices: int
@@ -97,6 +136,8 @@ class LoosePieces:
     touching: tuple
     touched: tuple
     patches: tuple = ()
+    watched: tuple = ()
+    sides: tuple = ()
 
     def reattach(self, rest_v: ArrayLike, deformed_v: ArrayLike) -> Vertices:
         """The deformed mesh with each loose piece moved back to what it touched.
@@ -153,13 +194,21 @@ class LoosePieces:
         if not len(rest) == len(out) == self.n_vertices:
             raise InputError(f"the loose pieces are of a mesh of {self.n_vertices} vertices; "
                              f"rest_v has {len(rest)} and deformed_v {len(out)}")
-        patches = self.patches or (np.zeros(0, np.int64),) * len(self.pieces)
-        for piece, i, j, patch in zip(self.pieces, self.touching, self.touched, patches):
+        n = len(self.pieces)
+        patches = self.patches or (np.zeros(0, np.int64),) * n
+        watched = self.watched or (False,) * n
+        sides = self.sides or tuple(np.zeros(len(i), np.int64) for i in self.touching)
+        off = DETACHED * float(np.ptp(rest, axis=0).max())
+        for piece, i, j, patch, watch, side in zip(self.pieces, self.touching, self.touched,
+                                                   patches, watched, sides):
+            if watch and not _off(rest, out, i, j, side, off):
+                continue  # the cage kept it on something it touched
             turn = _turn(rest, out, piece, patch)
             if turn is None:
-                out[piece] += np.median(out[j] + (rest[i] - rest[j]) - out[i], axis=0)
+                moved = out[piece] + np.median(out[j] + (rest[i] - rest[j]) - out[i], axis=0)
             else:
-                out[piece] = rest[piece] @ turn.T + np.median(out[j] - rest[j] @ turn.T, axis=0)
+                moved = rest[piece] @ turn.T + np.median(out[j] - rest[j] @ turn.T, axis=0)
+            out[piece] = _fitted(rest, out, piece, i, j, side, moved, off)
         return out
 
 
@@ -183,8 +232,9 @@ def find_loose_pieces(vertices: ArrayLike, faces: ArrayLike, mended: ArrayLike,
     Returns
     -------
     LoosePieces
-        Loose pieces that touch fewer than :data:`CONTACT_PAIRS` settled vertices it may
-        follow are left out (the cage moves them).
+        The watched pieces (the larger first), then the loose ones (outward from the
+        well-bound pieces). Pieces that touch fewer than :data:`CONTACT_PAIRS` settled
+        vertices they may follow are left out (the cage moves them).
 
     Raises
     ------
@@ -219,16 +269,30 @@ def find_loose_pieces(vertices: ArrayLike, faces: ArrayLike, mended: ArrayLike,
     if unknown:
         raise InputError(f"parts names {unknown[0]!r}, which is no rigid part of the humanoid "
                          "(cagekit.datasets.humanoid.RIGID_PARTS, or '' for none)")
-    pieces, used = _pieces(len(V), F)
-    loose = [p for p in pieces
-             if len(p) <= LOOSE_SIZE * used.sum() and mended[p].mean() >= LOOSE_MENDED]
+    label = vertex_components(len(V), F)
+    used = label >= 0
+    pieces = [np.flatnonzero(label == c) for c in np.unique(label[used])]
+    small = [p for p in pieces if len(p) <= LOOSE_SIZE * used.sum()]
+    loose = [p for p in small if mended[p].mean() >= LOOSE_MENDED]
+    watched = sorted((p for p in small if WATCHED_MENDED <= mended[p].mean() < LOOSE_MENDED
+                      and len(p) <= WATCHED_SIZE * used.sum()),
+                     key=len, reverse=True)
     settled = used.copy()
     for p in loose:
         settled[p] = False
     well = np.flatnonzero(settled & ~mended)  # what a bent piece's patch is made of
     extent = float(np.ptp(V, axis=0).max())
     reach = CONTACT * extent
-    order, touching, touched = [], [], []
+    order, touching, touched, kinds = [], [], [], []
+    for p in watched:  # against every other settled piece, the larger watched ones first
+        anchors = np.flatnonzero(settled & (label != label[p[0]]))
+        i, j = _touching(V, p, anchors, cKDTree(V[anchors]) if len(anchors) else None, labels,
+                         reach)
+        if len(i) >= CONTACT_PAIRS:
+            order.append(p)
+            touching.append(i)
+            touched.append(j)
+            kinds.append(True)
     while loose:
         anchors = np.flatnonzero(settled)  # one tree a round: the settled set is fixed in it
         tree = cKDTree(V[anchors]) if len(anchors) else None
@@ -239,6 +303,7 @@ def find_loose_pieces(vertices: ArrayLike, faces: ArrayLike, mended: ArrayLike,
                 order.append(p)
                 touching.append(i)
                 touched.append(j)
+                kinds.append(False)
                 followed.append(p)
         if not followed:
             break
@@ -248,7 +313,8 @@ def find_loose_pieces(vertices: ArrayLike, faces: ArrayLike, mended: ArrayLike,
     well_tree = cKDTree(V[well]) if len(well) else None
     patches = tuple(_patch(V, p, j, well, well_tree, labels, PATCH_REACH * extent)
                     for p, j in zip(order, touched))
-    return LoosePieces(len(V), tuple(order), tuple(touching), tuple(touched), patches)
+    return LoosePieces(len(V), tuple(order), tuple(touching), tuple(touched), patches,
+                       tuple(kinds), tuple(label[j] for j in touched))
 
 
 def _touching(V, piece, anchors, tree, labels, reach) -> tuple[np.ndarray, np.ndarray]:
@@ -290,6 +356,44 @@ def _rigid_fit(rest, moved) -> tuple[np.ndarray, float]:
     return R, float(np.sqrt(np.mean(np.sum((a @ R.T - b) ** 2, axis=1))))
 
 
+def _fitted(rest, out, piece, i, j, side, moved, off) -> np.ndarray:
+    """``moved`` (the piece's vertices), or its rest shape fitted rigidly to its contacts
+    on the piece it touched most when ``moved`` is off them by more than ``off`` (median),
+    the contacts spread enough to turn it by (:data:`CONTACT_SPREAD`) and the fit leaves
+    :data:`FIT_GAIN` of the gap or less (see the module)."""
+    on = side == np.bincount(side).argmax()
+    i, j = i[on], j[on]
+    target = out[j] + (rest[i] - rest[j])
+    at = np.searchsorted(piece, i)
+    gap = _gap(moved[at], target)
+    if gap <= off or not _spread(rest[piece], rest[i]):
+        return moved
+    a, b = rest[i] - rest[i].mean(axis=0), target - target.mean(axis=0)
+    R = polar((b.T @ a)[None])[0][0]
+    fitted = (rest[piece] - rest[i].mean(axis=0)) @ R.T + target.mean(axis=0)
+    return fitted if _gap(fitted[at], target) <= FIT_GAIN * gap else moved
+
+
+def _spread(piece_v, contact_v) -> bool:
+    """Whether the contacts spread in two directions by :data:`CONTACT_SPREAD` of the
+    piece's size (root mean square distances from their centres)."""
+    size = np.sqrt(np.mean(np.sum((piece_v - piece_v.mean(axis=0)) ** 2, axis=1)))
+    s = np.linalg.svd(contact_v - contact_v.mean(axis=0), compute_uv=False)
+    return len(s) >= 2 and s[1] / np.sqrt(len(contact_v)) >= CONTACT_SPREAD * size
+
+
+def _gap(points, targets) -> float:
+    """The median distance between the points and their targets."""
+    return float(np.median(np.linalg.norm(points - targets, axis=1)))
+
+
+def _off(rest, out, i, j, side, off) -> bool:
+    """Whether the touching pairs ``(i, j)`` opened from their rest offsets by more than
+    ``off`` (median) on every piece touched (``side``: each ``j``'s piece)."""
+    gaps = np.linalg.norm(out[i] - out[j] - (rest[i] - rest[j]), axis=1)
+    return all(np.median(gaps[side == s]) > off for s in np.unique(side))
+
+
 def _turn(rest, out, piece, patch) -> np.ndarray | None:
     """The rotation to turn a bent piece's rest shape by (its patch's best), or None for a
     piece not bent or with too small a patch (see the module)."""
@@ -300,13 +404,6 @@ def _turn(rest, out, piece, patch) -> np.ndarray | None:
     bent = _rigid_fit(rest[piece], out[piece])[1]
     turn, spread = _rigid_fit(rest[patch], out[patch])
     return turn if bent > BENT * size and bent > BENT_RATIO * spread else None
-
-
-def _pieces(n, F) -> tuple[list[np.ndarray], np.ndarray]:
-    """The vertex indices of each connected piece of the faces, and the used vertices."""
-    label = vertex_components(n, F)
-    used = label >= 0
-    return [np.flatnonzero(label == c) for c in np.unique(label[used])], used
 
 
 def _common(labels) -> str:

@@ -96,9 +96,12 @@ def test_well_bound_large_and_untouching_pieces_are_left_to_the_cage():
     box, tri = _box([0, 0, 0]), _triangle([0.501, 0, 0])
     far = _triangle([5.0, 0, 0])
     V, F, (box_i, tri_i, far_i) = _mesh(box, tri, far)
-    # the triangle well bound (mended 1 of 3), the far one loose but touching nothing
-    mended = np.isin(np.arange(len(V)), np.concatenate([tri_i[:1], far_i]))
+    # the triangle well bound (none mended), the far one loose but touching nothing
+    mended = np.isin(np.arange(len(V)), far_i)
     assert find_loose_pieces(V, F, mended).pieces == ()
+    # mended 1 of 3: watched, not loose
+    loose = find_loose_pieces(V, F, mended | np.isin(np.arange(len(V)), tri_i[:1]))
+    assert [p.tolist() for p in loose.pieces] == [tri_i.tolist()] and loose.watched == (True,)
     # a mended piece of more than a tenth of the vertices is never loose: two boxes
     V2, F2, (first, second) = _mesh(_box([0, 0, 0]), _box([1.001, 0, 0]))
     assert find_loose_pieces(V2, F2, np.isin(np.arange(len(V2)), second)).pieces == ()
@@ -265,3 +268,49 @@ def test_a_bent_piece_turns_with_its_own_part_not_the_hip():
     np.testing.assert_allclose(loose.reattach(V, moved)[hand], V[hand] @ turn.T + shift,
                                atol=1e-9)
     assert np.abs(everything.reattach(V, moved)[hand] - (V[hand] @ turn.T + shift)).max() > 0.1
+
+
+def _fine_box_and_strip(n, mended_count):
+    """The fine box (1538 vertices) and a strip of ``n`` vertices 0.001 off its side, the
+    first ``mended_count`` of them mended."""
+    box = trimesh.creation.box().subdivide().subdivide().subdivide().subdivide()
+    V, F, (box_i, strip) = _mesh((np.asarray(box.vertices), np.asarray(box.faces)), _strip(n))
+    return V, F, box_i, strip, np.isin(np.arange(len(V)), strip[:mended_count])
+
+
+def test_a_watched_piece_keeps_the_cage_s_motion_unless_taken_off():
+    V, F, box, strip, mended = _fine_box_and_strip(8, 2)  # a quarter mended: watched
+    loose = find_loose_pieces(V, F, mended)
+    assert loose.watched == (True,)
+    extent = float(np.ptp(V, axis=0).max())
+    # the cage lifts the box and the strip with it, the strip a little off (under DETACHED):
+    # the cage's result is kept as it is
+    moved = V + [0.0, 1.0, 0.0]
+    moved[strip] += [0.0, 0.0, 0.5 * lp.DETACHED * extent]
+    np.testing.assert_array_equal(loose.reattach(V, moved), moved)
+    # the cage leaves the strip behind (off by 1): it follows the box
+    moved[strip] = V[strip]
+    np.testing.assert_allclose(loose.reattach(V, moved)[strip], V[strip] + [0.0, 1.0, 0.0],
+                               atol=1e-12)
+    # under a quarter mended: not watched, left to the cage
+    assert find_loose_pieces(V, F, np.isin(np.arange(len(V)), strip[:1])).pieces == ()
+
+
+def test_a_piece_left_off_is_fitted_rigidly_to_contacts_that_spread():
+    # a 5 x 5 patch lying on the box's side, all of it mended: every vertex a contact.
+    # The box turns 30 degrees; the cage turns the patch 60 and lifts it off the side:
+    # not bent, so translated, which leaves it off (turned wrong); its contacts spread, so
+    # it is fitted to them: the patch turns with the box exactly
+    V, F, box, strip, mended = _fine_box_and_strip(25, 25)
+    loose = find_loose_pieces(V, F, mended)
+    assert loose.watched == (False,)
+    turn = _about_z(30)
+    moved = V @ turn.T
+    moved[strip] = V[strip] @ _about_z(60).T + [0.0, 0.0, 0.2]
+    # (to the 0.001 rest offsets, which are not turned)
+    out = loose.reattach(V, moved)[strip]
+    np.testing.assert_allclose(out, V[strip] @ turn.T, atol=1e-3)
+    assert np.abs(moved[strip] - V[strip] @ turn.T).max() > 0.2
+    # the same patch with its contacts on one line (a thin cuff) keeps the translation
+    line = V[strip, 2] == V[strip[0], 2]
+    assert lp._spread(V[strip], V[strip]) and not lp._spread(V[strip], V[strip[line]])
