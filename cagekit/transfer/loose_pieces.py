@@ -44,9 +44,10 @@ back to the pieces it touched went with the wrong one.
 
 Watched pieces are visited first, the larger first; then loose pieces outward from the
 well-bound ones, so a shoe follows its hem after the hem has followed the leg. Given each
-vertex's rigid part (the humanoid's, from the nearest landmark), a piece follows only what it touched on its own part or the parts next to it
-along the skeleton (:data:`cagekit.datasets.humanoid.RIGID_PARENTS`): a hand resting on the
-hip follows the wrist, not the hip.
+vertex's rigid part (the humanoid's, from the nearest landmark), a piece follows only what
+it touched on its own part or the parts next to it along the skeleton
+(:data:`cagekit.datasets.humanoid.RIGID_PARENTS`): a hand resting on the hip follows the
+wrist, not the hip.
 """
 
 from __future__ import annotations
