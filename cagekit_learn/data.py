@@ -35,13 +35,15 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike
 
+from cagekit.cage import vertex_components
 from cagekit.datasets import synthetic as _synthetic
 from cagekit.errors import CagekitWarning, InputError
-from cagekit.geometry import as_count
+from cagekit.geometry import as_count, as_faces
 from cagekit.geometry.frame import Frame
 from cagekit.geometry.sampling import sample_surface
 from cagekit.io import SUPPORTED_MESH_EXTENSIONS, load_shape
 from cagekit.io.files import atomic_output
+from cagekit.metrics import MIN_PART_VERTICES
 from cagekit.progress import progress_bar
 from cagekit.typed import Ints
 
@@ -62,6 +64,7 @@ __all__ = [
     "find_meshes",
     "fixed_source_pairs",
     "make_batch",
+    "sample_parts",
     "shard",
 ]
 
@@ -71,8 +74,9 @@ MESH_EXTENSIONS = SUPPORTED_MESH_EXTENSIONS
 CACHE_DIRNAME = ".cagekit-cache"
 """Name of the default cache folder, inside the collection's root."""
 
-CACHE_FORMAT = 1
-"""Version of the cache layout; a cache of another version is rebuilt."""
+CACHE_FORMAT = 2
+"""Version of the cache layout; a cache of another version is rebuilt (2: the samples'
+part labels, :attr:`ShapeCollection.parts`, are cached with them)."""
 
 _SAMPLES_FILE = "samples.npz"
 _MANIFEST_FILE = "manifest.json"
@@ -99,14 +103,78 @@ def _shape_seed(seed: int, name: str) -> int:
     return int(state.generate_state(1, dtype=np.uint64)[0])
 
 
-def _sample_shape(V, F, points: int, seed: int) -> np.ndarray:
-    """Normalise ``V`` and draw ``points`` samples; (points, 3) float32.
+def _sample_shape(V, F, points: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Normalise ``V`` and draw ``points`` samples: (points, 3) float32 and their part
+    labels (points,) int32 (:func:`sample_parts`; all -1 for a point cloud).
 
     Raises InputError for shapes that cannot be normalised or sampled (zero extent, zero
     area).
     """
-    P = sample_surface(Frame.of(V).to_unit(V), F, points, seed=seed, fill=True)
-    return np.ascontiguousarray(P, dtype=np.float32)
+    Vn, F = Frame.of(V).to_unit(V), as_faces(F, len(V))
+    if not len(F):  # a point cloud: no faces, no parts
+        P = sample_surface(Vn, F, points, seed=seed, fill=True)
+        return np.ascontiguousarray(P, dtype=np.float32), np.full(len(P), -1, np.int32)
+    P, faces = sample_surface(Vn, F, points, seed=seed, fill=True, return_faces=True)
+    return np.ascontiguousarray(P, dtype=np.float32), sample_parts(len(V), F, faces)
+
+
+def sample_parts(n_vertices: int, F: ArrayLike, faces: ArrayLike,
+                 min_vertices: int = MIN_PART_VERTICES) -> np.ndarray:
+    """The part of each surface sample: the connected component of the face it lies on.
+
+    Parts are as ``cagekit deform``'s part-affinity term takes them: face components of
+    at least ``min_vertices`` vertices.
+
+    Parameters
+    ----------
+    n_vertices : int
+        Vertex count of the mesh.
+    F : (m, 3) array_like of int
+        Its triangles.
+    faces : (n,) array_like of int
+        Index into ``F`` of each sample's face (``sample_surface(..., return_faces=True)``).
+    min_vertices : int, default :data:`cagekit.metrics.MIN_PART_VERTICES`
+        Smaller components are no part.
+
+    Returns
+    -------
+    (n,) int32 ndarray
+        The component label of each sample's face, or -1 on a component of fewer than
+        ``min_vertices`` vertices.
+
+    Examples
+    --------
+    >>> F = [[0, 1, 2], [3, 4, 5], [4, 5, 6]]  # a triangle, then two triangles
+    >>> sample_parts(7, F, [0, 1, 2, 0], min_vertices=4).tolist()
+    [-1, 1, 1, -1]
+    """
+    F = as_faces(F, int(n_vertices))
+    corners = F[np.asarray(faces, dtype=np.int64), 0]  # a face's vertices share its component
+    return _vertex_parts(int(n_vertices), F, int(min_vertices))[corners]
+
+
+def _vertex_parts(n_vertices: int, F, min_vertices: int = MIN_PART_VERTICES) -> np.ndarray:
+    """The part of each vertex, (v,) int32: its face component when that has at least
+    ``min_vertices`` vertices, else -1 (also on no face, and for a point cloud)."""
+    F = as_faces(F, n_vertices)
+    if not len(F):
+        return np.full(n_vertices, -1, dtype=np.int32)
+    labels = vertex_components(n_vertices, F)
+    sizes = np.bincount(labels[labels >= 0])
+    big = (labels >= 0) & (sizes[np.maximum(labels, 0)] >= min_vertices)
+    return np.where(big, labels, -1).astype(np.int32)
+
+
+def _as_parts(parts, shape) -> np.ndarray:
+    """Part labels as an (N, P) int32 array (-1 everywhere when None); InputError when
+    they are not integers of that shape."""
+    if parts is None:
+        return np.full(shape, -1, dtype=np.int32)
+    parts = np.asarray(parts)
+    if parts.shape != tuple(shape) or not np.issubdtype(parts.dtype, np.integer):
+        raise InputError(f"part labels must be an integer array of shape {tuple(shape)}, "
+                         f"got {parts.dtype} {parts.shape}")
+    return np.ascontiguousarray(parts, dtype=np.int32)
 
 
 def _is_hidden(name: str) -> bool:
@@ -184,6 +252,12 @@ class ShapeCollection:
         ``P`` samples of each shape, uniform by area on the surface of the shape normalised
         on its own (bounding-box centre at the origin, largest half-extent 1), so every
         point lies in ``[-1, 1]^3``.
+    parts : (N, P) int32 ndarray
+        The part of each sample (:func:`sample_parts`: the connected component of the face
+        it was drawn from; in correspondence, of its vertex), for the part-affinity
+        training term; -1 on no part: a component of fewer than
+        :data:`cagekit.metrics.MIN_PART_VERTICES` vertices, a point cloud, samples given
+        without labels.
     rows : (P,) int64 ndarray or None
         For a collection in correspondence (:meth:`corresponding`): the vertex rows every
         shape's samples were taken from; None otherwise.
@@ -197,7 +271,7 @@ class ShapeCollection:
     (2, dtype('float32'))
     """
 
-    def __init__(self, names: Iterable[str], points: ArrayLike):
+    def __init__(self, names: Iterable[str], points: ArrayLike, parts: ArrayLike | None = None):
         names = [str(n) for n in names]
         points = np.asarray(points)
         if points.ndim != 3 or points.shape[2] != 3:
@@ -213,6 +287,7 @@ class ShapeCollection:
             raise InputError("points must be finite (no NaN or infinity)")
         self.names: list[str] = names
         self.points: np.ndarray = points
+        self.parts: np.ndarray = _as_parts(parts, points.shape[:2])
         self.rows: np.ndarray | None = None
         self.vertex_count: int | None = None
 
@@ -226,7 +301,8 @@ class ShapeCollection:
     # ------------------------------------------------------------------ constructors
 
     @classmethod
-    def from_arrays(cls, names: Iterable[str], points: ArrayLike) -> ShapeCollection:
+    def from_arrays(cls, names: Iterable[str], points: ArrayLike,
+                    parts: ArrayLike | None = None) -> ShapeCollection:
         """A collection from given names and point samples (copied, as float32).
 
         Parameters
@@ -235,6 +311,8 @@ class ShapeCollection:
             ``N`` unique names.
         points : (N, P, 3) array_like of float
             Finite samples, assumed already normalised.
+        parts : (N, P) array_like of int, optional
+            Each sample's part label (:attr:`parts`); default -1 everywhere (no parts).
 
         Returns
         -------
@@ -243,15 +321,16 @@ class ShapeCollection:
         Raises
         ------
         InputError
-            Wrong shape, non-finite values, a name count that differs from ``N``, or
-            duplicate names.
+            Wrong shape, non-finite values, a name count that differs from ``N``,
+            duplicate names, or part labels of another shape than ``(N, P)``.
 
         Examples
         --------
         >>> ShapeCollection.from_arrays(["a", "b", "c"], np.zeros((3, 16, 3))).points.shape
         (3, 16, 3)
         """
-        return cls(list(names), np.array(points, dtype=np.float32, copy=True))
+        return cls(list(names), np.array(points, dtype=np.float32, copy=True),
+                   None if parts is None else np.array(parts, copy=True))
 
     @classmethod
     def corresponding(cls, root: str | os.PathLike, points: int = 1024,
@@ -285,7 +364,8 @@ class ShapeCollection:
         if len(paths) < 2:
             raise InputError(f"{root}: needs at least two meshes in correspondence, found "
                              f"{len(paths)}")
-        shapes = [load_shape(path)[0] for path in paths]
+        meshes = [load_shape(path) for path in paths]
+        shapes = [V for V, _ in meshes]
         n = len(shapes[0])
         for path, V in zip(paths, shapes):
             if len(V) != n:
@@ -294,7 +374,8 @@ class ShapeCollection:
         rows = corresponding_rows(n, points, seed)
         names = [path.relative_to(root).as_posix() for path in paths]
         collection = cls(names, np.stack([Frame.of(V).to_unit(V)[rows] for V in shapes]
-                                         ).astype(np.float32))
+                                         ).astype(np.float32),
+                         np.stack([_vertex_parts(len(V), F)[rows] for V, F in meshes]))
         collection.rows, collection.vertex_count = rows, n
         return collection
 
@@ -338,14 +419,16 @@ class ShapeCollection:
         n = as_count(n, "n")
         seed = as_count(seed, "seed")
         points = as_count(points, "points", 1)
-        names, samples = [], []
+        names, samples, parts = [], [], []
         for i, (V, F) in enumerate(_synthetic.family(family, n, seed=seed,
                                                      resolution=resolution)):
             name = f"{family}/{i:04d}"
             names.append(name)
-            samples.append(_sample_shape(V, F, points, _shape_seed(seed, name)))
+            P, labels = _sample_shape(V, F, points, _shape_seed(seed, name))
+            samples.append(P)
+            parts.append(labels)
         stack = np.stack(samples) if samples else np.empty((0, points, 3), np.float32)
-        return cls(names, stack)
+        return cls(names, stack, np.stack(parts) if parts else None)
 
     @classmethod
     def from_folder(cls, root: str | os.PathLike, points: int = 1024, seed: int = 0,
@@ -420,6 +503,8 @@ class ShapeCollection:
         names = [e[0] for e in entries]
         stack = (np.stack([e[3] for e in entries]) if entries
                  else np.empty((0, points, 3), np.float32))
+        parts = (np.stack([e[4] for e in entries]) if entries
+                 else np.empty((0, points), np.int32))
         if cache is not None:
             manifest = {
                 "format": CACHE_FORMAT,
@@ -429,11 +514,11 @@ class ShapeCollection:
                 "skipped": skipped,
             }
             if old is None or old["manifest"] != manifest:
-                cache.write(manifest, names, stack)
+                cache.write(manifest, names, stack, parts)
         if len(entries) < 2:
             raise InputError(f"only {len(entries)} usable shape(s) of {len(paths)} mesh "
                              "file(s); at least 2 are needed to make pairs", base)
-        return cls(names, stack)
+        return cls(names, stack, parts)
 
 
 # ------------------------------------------------------------------------ correspondence
@@ -555,7 +640,7 @@ class FixedSource:
         else:
             rows = None
             try:
-                samples = _sample_shape(V, F, points, _shape_seed(seed, path.name))
+                samples = _sample_shape(V, F, points, _shape_seed(seed, path.name))[0]
             except InputError as exc:
                 raise InputError(exc.problem, path) from None
         return cls(path, samples, rows, len(V), center, scale)
@@ -564,8 +649,8 @@ class FixedSource:
 def _scan(base, paths, old):
     """What :meth:`ShapeCollection.from_folder` takes from the cache and what it samples.
 
-    Returns ``(entries, skipped, todo)``: ``[name, size, mtime_ns, samples or None]`` per
-    usable file, the skipped files' records, and ``(entry index, path)`` to sample.
+    Returns ``(entries, skipped, todo)``: ``[name, size, mtime_ns, samples or None, parts
+    or None]`` per usable file, the skipped files' records, and ``(entry index, path)`` to sample.
     """
     old_files = old["files"] if old else {}
     old_skipped = old["skipped"] if old else {}
@@ -581,7 +666,7 @@ def _scan(base, paths, old):
             continue
         key = (st.st_size, st.st_mtime_ns)
         if name in old_files and old_files[name][0] == key:
-            entries.append([name, *key, old_files[name][1]])
+            entries.append([name, *key, *old_files[name][1:]])
         elif name in old_skipped and old_skipped[name][0] == key:
             problem = old_skipped[name][1]
             warnings.warn(CagekitWarning(f"skipping {path}: {problem} (remembered by the "
@@ -590,7 +675,7 @@ def _scan(base, paths, old):
                             "problem": problem})
         else:
             todo.append((len(entries), path))
-            entries.append([name, *key, None])
+            entries.append([name, *key, None, None])
     return entries, skipped, todo
 
 
@@ -603,7 +688,7 @@ def _sample_new(entries, skipped, todo, points, seed, progress) -> set:
             name = entries[index][0]
             try:
                 V, F = load_shape(path)
-                entries[index][3] = _sample_shape(V, F, points, _shape_seed(seed, name))
+                entries[index][3:5] = _sample_shape(V, F, points, _shape_seed(seed, name))
             except InputError as exc:
                 warnings.warn(CagekitWarning(f"skipping {path}: {exc.problem}"), stacklevel=3)
                 skipped.append({"name": name, "size": entries[index][1],
@@ -664,14 +749,16 @@ class SampleCache:
                 token = str(npz["token"])
                 names = [str(n) for n in npz["names"]]
                 stack = np.asarray(npz["points"], dtype=np.float32)
+                parts = np.asarray(npz["parts"], dtype=np.int32)
             files = manifest["files"]
             if (token != manifest["token"] or names != [f["name"] for f in files]
-                    or stack.shape != (len(files), points, 3)):
+                    or stack.shape != (len(files), points, 3)
+                    or parts.shape != (len(files), points)):
                 return None
             token = manifest.pop("token")
             return {
                 "manifest": manifest,
-                "files": {f["name"]: ((int(f["size"]), int(f["mtime_ns"])), stack[i])
+                "files": {f["name"]: ((int(f["size"]), int(f["mtime_ns"])), stack[i], parts[i])
                           for i, f in enumerate(files)},
                 "skipped": {s["name"]: ((int(s["size"]), int(s["mtime_ns"])), str(s["problem"]))
                             for s in manifest.get("skipped", [])},
@@ -682,15 +769,17 @@ class SampleCache:
                           stacklevel=3)
             return None
 
-    def write(self, manifest: dict, names: Sequence[str], stack: ArrayLike) -> None:
-        """Write samples then manifest atomically; warn (default cache) or raise (explicit)."""
+    def write(self, manifest: dict, names: Sequence[str], stack: ArrayLike,
+              parts: ArrayLike) -> None:
+        """Write samples (``stack`` (N, P, 3), ``parts`` (N, P)) then manifest atomically;
+        warn (default cache) or raise (explicit)."""
         cache, explicit = self.folder, self.explicit
         token = secrets.token_hex(8)
         try:
             cache.mkdir(parents=True, exist_ok=True)
             with atomic_output(cache / _SAMPLES_FILE) as tmp, open(tmp, "wb") as f:
                 np.savez(f, token=np.array(token), names=np.array(names, dtype=str),
-                         points=stack)
+                         points=stack, parts=parts)
             with atomic_output(cache / _MANIFEST_FILE) as tmp, open(tmp, "w",
                                                                     encoding="utf-8") as f:
                 json.dump({**manifest, "token": token}, f, indent=1)
@@ -852,6 +941,14 @@ def augment(points: ArrayLike, rng: np.random.Generator | int, low: float = 0.75
     return Frame.of(scaled).to_unit(scaled).astype(np.float32)
 
 
+def _source_parts(collection, pairs: np.ndarray, points: int, fixed: bool) -> np.ndarray:
+    """The part labels of a batch's sources, (b, points) int64 (-1: no part; all of a
+    fixed source's and of an array collection's)."""
+    if fixed or not isinstance(collection, ShapeCollection):
+        return np.full((len(pairs), points), -1, dtype=np.int64)
+    return collection.parts[pairs[:, 0]].astype(np.int64)
+
+
 def make_batch(collection: ShapeCollection | ArrayLike, pairs: ArrayLike, *, epoch: int,
                step: int, seed: int = 0, augmentation: bool = True,
                dtype: torch.dtype | None = None,
@@ -881,7 +978,9 @@ def make_batch(collection: ShapeCollection | ArrayLike, pairs: ArrayLike, *, epo
     Returns
     -------
     dict
-        ``"source"``, ``"target"``: (b, P, 3) tensors of ``dtype``; ``"source_index"``,
+        ``"source"``, ``"target"``: (b, P, 3) tensors of ``dtype``; ``"source_parts"``:
+        (b, P) ``torch.long``, each source sample's part (:attr:`ShapeCollection.parts`; -1
+        everywhere for a fixed source or an array collection); ``"source_index"``,
         ``"target_index"``: (b,) ``torch.long`` tensors. Row ``i`` is augmented with a
         Generator seeded from ``(seed, epoch, step, i, source index, target index)`` (with a
         fixed source: ``(seed, epoch, step, i, target index)``), so the same arguments give
@@ -945,6 +1044,7 @@ def make_batch(collection: ShapeCollection | ArrayLike, pairs: ArrayLike, *, epo
     return {
         "source": torch.from_numpy(np.ascontiguousarray(source)).to(dtype),
         "target": torch.from_numpy(np.ascontiguousarray(target)).to(dtype),
+        "source_parts": torch.from_numpy(_source_parts(collection, pairs, data.shape[1], fixed)),
         "source_index": torch.from_numpy(pairs[:, 0].copy()),
         "target_index": torch.from_numpy(pairs[:, 1].copy()),
     }

@@ -11,13 +11,16 @@ first-order eigenvector perturbation, not :func:`torch.linalg.eigh`'s (NaN or in
 two eigenvalues coincide, as on a planar patch); eigenvalue pairs closer than ``1e-12``
 (float32: ``8 eps``, above its rounding noise) times the covariance's trace contribute no
 gradient, so gradients stay finite. A normal's sign never matters. Training combines the
-terms with the paper's weights: ``L = L_align + ALPHA_MVC * L_MVC + ALPHA_SHAPE * L_shape``.
+terms with the paper's weights: ``L = L_align + ALPHA_MVC * L_MVC + ALPHA_SHAPE * L_shape``
+(and ours, :func:`part_affinity_loss`, ``cagekit deform``'s part-affinity term, on the parts
+of :func:`part_reference`).
 """
 
 from __future__ import annotations
 
 from typing import NamedTuple
 
+import numpy as np
 import torch
 from numpy.typing import ArrayLike
 from torch.autograd.function import once_differentiable
@@ -27,12 +30,15 @@ from cagekit.deformation.terms import (  # the paper's weights and the plane tes
     ALPHA_SHAPE,
     PLANE_GAP,
     axis_index,
+    part_bases,
 )
 from cagekit.errors import InputError
 
 __all__ = [
     "ALPHA_MVC",
     "ALPHA_SHAPE",
+    "MIN_PART_POINTS",
+    "PartReference",
     "ShapeReference",
     "cage_symmetry_loss",
     "chamfer_loss",
@@ -42,6 +48,9 @@ __all__ = [
     "mvc_loss",
     "normal_loss",
     "p2f_loss",
+    "part_affinity_loss",
+    "part_reference",
+    "part_rows",
     "shape_losses",
     "shape_reference",
     "symmetry_loss",
@@ -555,3 +564,165 @@ def p2f_loss(X: torch.Tensor, ref: ShapeReference) -> torch.Tensor:
     [0.16]
     """
     return shape_losses(X, ref)["p2f"]
+
+
+# ----------------------------------------------------------------------- part affinity
+
+
+MIN_PART_POINTS = 8
+"""Fewest samples of a part in :func:`part_reference`: four points fit any affine map
+exactly, so a part needs more to be held to one; twice that keeps a few-sample sliver of a
+part from counting as one."""
+
+
+class PartReference(NamedTuple):
+    """Each point's part and its row of the part's affine basis, for
+    :func:`part_affinity_loss` (detached).
+
+    Attributes
+    ----------
+    ids : (B, n) int64 tensor
+        The part of each point, ``0 .. parts - 1`` within its batch item; -1 for a point in
+        no part (every point of an item with fewer than two parts).
+    rows : (B, n, 4) float tensor
+        The point's row of its part's basis ``B_p`` (orthonormal columns spanning the
+        affine functions of the part's rest points, ``r_p <= 4`` of them, padded with
+        zeros); 0 for a point in no part.
+    """
+
+    ids: torch.Tensor
+    rows: torch.Tensor
+
+
+def part_rows(X_rest: ArrayLike, labels: ArrayLike,
+              min_points: int = MIN_PART_POINTS) -> tuple[np.ndarray, np.ndarray]:
+    """One shape's :class:`PartReference`, in NumPy, from its rest points.
+
+    Parameters
+    ----------
+    X_rest : (n, 3) array_like of float
+        The points at rest.
+    labels : (n,) array_like of int
+        A part label per point; negative: no part.
+    min_points : int, default :data:`MIN_PART_POINTS`
+        Parts of fewer points are left out.
+
+    Returns
+    -------
+    ids : (n,) int64 ndarray
+        ``0 .. parts - 1`` in the order of :func:`cagekit.deformation.terms.part_bases`;
+        -1 everywhere when fewer than two parts are left (the term then costs nothing, as
+        ``cagekit deform``'s, which needs a source of two parts or more).
+    rows : (n, 4) float64 ndarray
+        Each part point's row of its part's basis (``part_bases``), padded with zeros.
+
+    Examples
+    --------
+    >>> X = np.random.default_rng(0).normal(size=(20, 3))
+    >>> ids, rows = part_rows(X, np.repeat([0, 1], 10))
+    >>> ids.tolist() == [0] * 10 + [1] * 10, rows.shape
+    (True, (20, 4))
+    >>> int(part_rows(X, np.zeros(20, int))[0].max())  # one part: no term
+    -1
+    """
+    X_rest = np.asarray(X_rest, dtype=np.float64)
+    ids = np.full(len(X_rest), -1, dtype=np.int64)
+    rows = np.zeros((len(X_rest), 4))
+    parts = part_bases(X_rest, labels, int(min_points))
+    if len(parts.bases) < 2:
+        return ids, rows
+    for i, B in enumerate(parts.bases):
+        members = parts.index[parts.starts[i]:parts.starts[i + 1]]
+        ids[members] = i
+        rows[members, :B.shape[1]] = B
+    return ids, rows
+
+
+@torch.no_grad()
+def part_reference(X_rest: torch.Tensor, labels: torch.Tensor | ArrayLike,
+                   min_points: int = MIN_PART_POINTS) -> PartReference:
+    """The parts of a batch of rest shapes, for :func:`part_affinity_loss`.
+
+    Parameters
+    ----------
+    X_rest : (B, n, 3) float tensor
+        The rest points (detached here; the bases are computed in float64 on the CPU).
+    labels : (B, n) integer tensor or array
+        A part label per point (:attr:`cagekit_learn.data.ShapeCollection.parts`);
+        negative: no part.
+    min_points : int, default :data:`MIN_PART_POINTS`
+        Parts of fewer points are left out.
+
+    Returns
+    -------
+    PartReference
+        On ``X_rest``'s device, ``rows`` in its dtype (:func:`part_rows` per item).
+
+    Examples
+    --------
+    >>> X = torch.randn(2, 20, 3, generator=torch.Generator().manual_seed(0))
+    >>> ref = part_reference(X, np.repeat([[0, 1]], 10, axis=1).repeat(2, axis=0))
+    >>> ref.ids.shape, ref.rows.shape
+    (torch.Size([2, 20]), torch.Size([2, 20, 4]))
+    """
+    _check_points(X_rest, "the rest points")
+    labels = np.asarray(labels.cpu() if isinstance(labels, torch.Tensor) else labels)
+    if labels.shape != tuple(X_rest.shape[:2]):
+        raise InputError(f"part labels must have shape {tuple(X_rest.shape[:2])}, got "
+                         f"{labels.shape}")
+    rest = X_rest.detach().cpu().double().numpy()
+    ids, rows = zip(*(part_rows(x, label, min_points) for x, label in zip(rest, labels)))
+    return PartReference(torch.as_tensor(np.stack(ids), device=X_rest.device),
+                         torch.as_tensor(np.stack(rows), dtype=X_rest.dtype,
+                                         device=X_rest.device))
+
+
+def part_affinity_loss(X: torch.Tensor, ref: PartReference) -> torch.Tensor:
+    """How far each part is from an affine map of its rest points.
+
+    The torch form of :func:`cagekit.deformation.terms.part_affinity_loss`, the term of
+    ``cagekit deform`` that keeps legs straight and seats flat while the parts move.
+
+    Parameters
+    ----------
+    X : (B, n, 3) float tensor
+        The deformed points.
+    ref : PartReference
+        From :func:`part_reference` on the rest points.
+
+    Returns
+    -------
+    (B,) tensor
+        ``sum over parts of |X_p - B_p B_p^T X_p|^2`` over the number of part points: the
+        mean squared residual of each part's least-squares affine fit. 0 for any affine
+        map of each part, and for an item without parts. ``B_p^T X_p`` is summed over each
+        part's points with :meth:`torch.Tensor.index_add`; the residual is formed point by
+        point (not as ``|X_p|^2 - |B_p^T X_p|^2``, which cancels in float32).
+
+    Examples
+    --------
+    >>> X = torch.randn(1, 20, 3, dtype=torch.float64,
+    ...                 generator=torch.Generator().manual_seed(0))
+    >>> ref = part_reference(X, np.repeat([[0, 1]], 10, axis=1))
+    >>> moved = torch.cat([X[:, :10] * 2.0 + 1.0, X[:, 10:] @ torch.randn(3, 3).double()], 1)
+    >>> round(part_affinity_loss(moved, ref).item(), 12) + 0.0
+    0.0
+    >>> bent = moved.clone()
+    >>> bent[0, 0] += 1.0
+    >>> part_affinity_loss(bent, ref).item() > 0.01
+    True
+    """
+    _check_points(X, "the deformed points", ref.ids.shape[0])
+    B, n = ref.ids.shape
+    if X.shape[1] != n:
+        raise InputError(f"the deformed points number {X.shape[1]}, the parts' {n}")
+    rows = ref.rows.to(X.dtype)
+    member = ref.ids >= 0
+    slots = int(ref.ids.max()) + 1 if member.any() else 0
+    slot = torch.where(member, ref.ids + slots * torch.arange(B, device=X.device)[:, None],
+                       B * slots)  # one spare slot for the points of no part (rows 0)
+    outer = rows[..., :, None] * X[..., None, :]  # (B, n, 4, 3): row^T x of each point
+    BtX = X.new_zeros((B * slots + 1, 4, 3)).index_add(0, slot.flatten(), outer.flatten(0, 1))
+    fit = torch.einsum("bnk,bnkc->bnc", rows, BtX[slot])  # B_p B_p^T X_p, point by point
+    residual = (X - fit) * member[..., None].to(X.dtype)
+    return residual.square().sum(dim=(1, 2)) / member.sum(dim=1).clamp_min(1).to(X.dtype)

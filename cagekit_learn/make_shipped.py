@@ -89,10 +89,13 @@ def training_folder(shapes: list, folder: str | os.PathLike) -> Path:
 
 def config_of(name: str, data: str | os.PathLike, run_dir: str | os.PathLike,
               steps: int) -> TrainConfig:
-    """The training config of a shipped model (defaults but for data, seed and steps)."""
+    """The training config of a shipped model (defaults but for data, seed and steps, and
+    the part-affinity term: off unless the recipe gives its ``alpha_parts``, as the shipped
+    models were trained before it)."""
     recipe = _recipe(name)
     return TrainConfig(data=str(data), run_dir=str(run_dir), epochs=1_000_000,
-                       seed=recipe["seed"], max_steps=int(steps))
+                       seed=recipe["seed"], max_steps=int(steps),
+                       alpha_parts=float(recipe.get("alpha_parts", 0.0)))
 
 
 def weights_sha256(state_dict: dict) -> str:

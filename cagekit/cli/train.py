@@ -24,7 +24,7 @@ MAX_LR = 1.0
 _STORED_OPTIONS = {
     "batch_size": "batch_size", "lr": "lr", "points": "points", "seed": "seed",
     "checkpoint_every": "checkpoint_every", "symmetry": "symmetry", "align": "align",
-    "enclosure_weight": "alpha_enclosure",
+    "enclosure_weight": "alpha_enclosure", "parts_weight": "alpha_parts",
     "no_augment": "augment", "bottleneck": "model.bottleneck", "coords": "model.coords",
     "nc": "model.nc", "no_box_align": "model.box_align",
 }
@@ -81,6 +81,11 @@ _STORED_OPTIONS = {
               type=FiniteFloatRange(min=0),
               help="Weight of the term that keeps every source point inside its predicted "
                    "cage (0: the paper's loss, whose cages may leave the source out).")
+@click.option("--parts-weight", default=60.0, show_default=True,
+              type=FiniteFloatRange(min=0),
+              help="Weight of the term that keeps each part of a source mesh (a connected "
+                   "component: a leg, a seat) an affine map of itself, as cagekit deform's "
+                   "(0: off, the paper's loss, which may bend legs and sag seats).")
 @click.option("--checkpoint-every", default=200, show_default=True,
               type=click.IntRange(min=1), help="Steps between checkpoints.")
 @click.option("--max-steps", default=None, type=click.IntRange(min=1),
@@ -95,7 +100,7 @@ def train(ctx: click.Context, data: str, run_dir: str, epochs: int | None, batch
           lr: float, device: str | None, resume: bool, points: int, bottleneck: int,
           coords: str, nc: str, fixed_source: str | None, source_cage: str | None,
           no_box_align: bool, symmetry: str, align: str, no_augment: bool,
-          enclosure_weight: float,
+          enclosure_weight: float, parts_weight: float,
           checkpoint_every: int, max_steps: int | None, minutes: float | None, seed: int,
           as_json: bool) -> None:
     """Train N_c and N_d (the paper's networks) on the meshes under DATA_DIR.
@@ -144,7 +149,8 @@ def train(ctx: click.Context, data: str, run_dir: str, epochs: int | None, batch
         points=points, seed=seed, device=device, checkpoint_every=checkpoint_every,
         symmetry=None if symmetry == "none" else symmetry, align=align,
         augment=not no_augment, max_steps=max_steps, max_minutes=minutes,
-        alpha_enclosure=enclosure_weight, model=model.to_dict(), fixed_source=fixed_source)
+        alpha_enclosure=enclosure_weight, alpha_parts=parts_weight, model=model.to_dict(),
+        fixed_source=fixed_source)
     if resume:
         _refuse_contradictions(ctx, config, source_cage)
     from cagekit.io.files import output_folder
