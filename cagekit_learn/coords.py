@@ -16,12 +16,21 @@ where"), and snap rows are differentiable limit interpolants. Points run ``chunk
 time, as component tensors with the points innermost and one 0/1 matrix product back to the
 vertices; with a gradient, large chunks run under :func:`torch.utils.checkpoint.checkpoint`
 (``use_reentrant=False``), so backward keeps about the points' size, not ``B x n x k``.
+
+On the CPU the same numbers come, by default, from compiled kernels
+(:mod:`cagekit.coords.mvc_grad`, forward and hand-derived vector-Jacobian product, float64
+inside for both dtypes) through one :class:`torch.autograd.Function`; the rows those kernels
+flag (within the switch-over distance of a face's plane, unresolvable sums, degenerate terms)
+are computed by the torch graph above and put in place, and the far blend is applied after.
+:func:`compiled_kernels` switches them off (the torch graph alone, as on CUDA).
 See docs/architecture.md.
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Literal, overload
 
@@ -32,11 +41,12 @@ from torch.utils.checkpoint import checkpoint
 
 from cagekit.cage import cage_topology, check_cage
 from cagekit.coords.mvc import FAR_BLEND, closest_point_weights
+from cagekit.coords.mvc_grad import mvc_vjp, mvc_weights_flagged
 from cagekit.errors import InputError
 from cagekit_learn.green import GreenBinding, green_coordinates
 
 __all__ = ["mean_value_coordinates", "CageBinding", "bind", "deform", "DEFAULT_SNAP",
-           "METHODS"]
+           "METHODS", "compiled_kernels"]
 
 METHODS = ("mvc", "green")
 
@@ -315,6 +325,86 @@ def _chunk(P, V, nrm, off, snap_d, cst: _Consts):
     return out
 
 
+_KERNELS = [True]
+
+
+@contextlib.contextmanager
+def compiled_kernels(enabled: bool) -> Iterator[None]:
+    """Use (or not) the compiled CPU kernels for MVC inside the block; then restore.
+
+    Parameters
+    ----------
+    enabled : bool
+        False computes CPU tensors with the torch graph alone (what CUDA tensors always
+        use): the reference the kernels are tested against, and the baseline of
+        ``benchmarks/bench_layer.py``.
+
+    Examples
+    --------
+    >>> from cagekit.cage.shapes import box_cage
+    >>> v, f = box_cage()
+    >>> x = torch.tensor([[0.1, 0.2, -0.3]], dtype=torch.float64)
+    >>> with compiled_kernels(False):
+    ...     w = mean_value_coordinates(x, torch.tensor(v), f)
+    >>> bool(torch.allclose(w, mean_value_coordinates(x, torch.tensor(v), f), atol=1e-14))
+    True
+    """
+    before = _KERNELS[0]
+    _KERNELS[0] = bool(enabled)
+    try:
+        yield
+    finally:
+        _KERNELS[0] = before
+
+
+class _KernelMVC(torch.autograd.Function):
+    """MVC of CPU tensors by :mod:`cagekit.coords.mvc_grad`: returns the weights (zero on
+    flagged rows) and the flags; the backward pass is the kernels' vector-Jacobian product
+    (zero on flagged rows, which the caller replaces)."""
+
+    @staticmethod
+    def forward(ctx, P, V, faces, snap, det_tol, skip):
+        w, flagged = mvc_weights_flagged(P.detach().numpy(), V.detach().numpy(), faces,
+                                         snap=snap, skip=skip.numpy(), det_tol=det_tol)
+        flagged_t = torch.from_numpy(flagged)
+        ctx.save_for_backward(P, V, flagged_t)
+        ctx.args = (faces, snap, det_tol)
+        ctx.mark_non_differentiable(flagged_t)
+        return torch.from_numpy(w).to(P.dtype), flagged_t
+
+    @staticmethod
+    @torch.autograd.function.once_differentiable
+    def backward(ctx, grad_w, _grad_flagged):
+        P, V, flagged = ctx.saved_tensors
+        faces, snap, det_tol = ctx.args
+        gp, gv = mvc_vjp(P.numpy(), V.numpy(), faces, grad_w.double().numpy(), snap=snap,
+                         skip=flagged.numpy(), det_tol=det_tol)
+        return (torch.from_numpy(gp).to(P.dtype), torch.from_numpy(gv).to(V.dtype), None, None,
+                None, None)
+
+
+def _kernel_weights(Pc, Vc, nrm, off, snap_d, snap, cst: _Consts, chunk_size):
+    """Normalised MVC (B, n, k) of CPU tensors by the compiled kernels, flagged rows by the
+    torch graph (:func:`_chunk`, ``chunk_size`` rows at a time)."""
+    B, n = Pc.shape[0], Pc.shape[1]
+    with torch.no_grad():
+        # rows the torch graph gives switch-over treatment: within snap_d of a face's plane
+        skip = torch.zeros(B, n, dtype=torch.bool)
+        for start in range(0, n, chunk_size):
+            p = Pc[:, start:start + chunk_size].detach()
+            h = nrm.detach() @ p.transpose(1, 2) - off.unsqueeze(-1)              # (B, m, c)
+            skip[:, start:start + chunk_size] = (h.abs() <= snap_d.view(-1, 1, 1)).any(1)
+    out, flagged = _KernelMVC.apply(Pc, Vc, cst.faces_np, snap, cst.thr_det, skip)
+    if not bool(flagged.any()):
+        return out
+    bi, ni = torch.nonzero(flagged, as_tuple=True)
+    for start in range(0, len(bi), chunk_size):
+        b, i = bi[start:start + chunk_size], ni[start:start + chunk_size]
+        rows = _chunk(Pc[b, i].unsqueeze(1), Vc[b], nrm[b], off[b], snap_d[b], cst)
+        out = out.index_put((b, i), rows.squeeze(1))
+    return out
+
+
 def _as_float_tensor(a, name):
     if not isinstance(a, torch.Tensor):
         a = torch.as_tensor(np.asarray(a, dtype=np.float64))
@@ -436,10 +526,24 @@ def _weights_and_faces(points, cage_v, cage_f, snap, chunk_size):
     with torch.no_grad():
         off = (Vc[:, f[:, 0]] * nrm).sum(-1)                                # (B, m)
 
+    if n == 0:
+        out = Pc.new_zeros((B, 0, k))
+    elif device.type == "cpu" and _KERNELS[0]:
+        out = _blend_far_rows(Pc, Vc, faces_np,
+                              _kernel_weights(Pc, Vc, nrm, off, snap_d, snap, cst, chunk_size))
+    else:
+        out = _blend_far_rows(Pc, Vc, faces_np, _graph_weights(Pc, Vc, nrm, off, snap_d, cst,
+                                                               chunk_size))
+    return (out[0] if unbatched else out), faces_np
+
+
+def _graph_weights(Pc, Vc, nrm, off, snap_d, cst: _Consts, chunk_size):
+    """Normalised MVC (B, n, k) by the torch graph, ``chunk_size`` points at a time."""
+    B, n = Pc.shape[0], Pc.shape[1]
     grad = torch.is_grad_enabled() and (Pc.requires_grad or Vc.requires_grad)
     # recomputation only pays where the saved tensors would be large (not for a few
     # landmarks in a small cage, where it would double the cost of every evaluation)
-    recompute = B * min(n, chunk_size) * len(faces_np) > _RECOMPUTE_ABOVE
+    recompute = B * min(n, chunk_size) * len(cst.faces_np) > _RECOMPUTE_ABOVE
     outs = []
     for start in range(0, n, chunk_size):
         p = Pc[:, start:start + chunk_size]
@@ -447,12 +551,7 @@ def _weights_and_faces(points, cage_v, cage_f, snap, chunk_size):
             outs.append(checkpoint(_chunk, p, Vc, nrm, off, snap_d, cst, use_reentrant=False))
         else:
             outs.append(_chunk(p, Vc, nrm, off, snap_d, cst))
-    if not outs:
-        out = Pc.new_zeros((B, 0, k))
-    else:
-        out = outs[0] if len(outs) == 1 else torch.cat(outs, 1)
-        out = _blend_far_rows(Pc, Vc, faces_np, out)
-    return (out[0] if unbatched else out), faces_np
+    return outs[0] if len(outs) == 1 else torch.cat(outs, 1)
 
 
 def _blend_far_rows(Pc, Vc, faces_np, out):
@@ -582,7 +681,7 @@ class CageBinding:
         >>> v, f = box_cage()
         >>> x = torch.tensor([[[0.5, 0.0, 0.0]]], dtype=torch.float64)
         >>> b = bind(x, torch.tensor(v), f)
-        >>> b.deform(2 * torch.tensor(v)).round(decimals=12).tolist()
+        >>> (b.deform(2 * torch.tensor(v)).round(decimals=12) + 0.0).tolist()
         [[[1.0, 0.0, 0.0]]]
         """
         return deform(self.weights, new_cage_v)

@@ -156,6 +156,19 @@ def unit_normals(v, f):
     return n / np.linalg.norm(n, axis=1, keepdims=True)
 
 
+def outside_plane_distance(p, v, f):
+    """Per point: the smallest distance to the plane of a face whose triangle it projects
+    outside of (inf if none) -- where single MVC weights are ill-conditioned."""
+    n = unit_normals(v, f)
+    h = p @ n.T - np.einsum("ij,ij->i", v[f[:, 0]], n)                    # (n, m)
+    a, b, c = (v[f[:, i]][None] - p[:, None] for i in range(3))            # (n, m, 3)
+    bary = np.stack([np.einsum("pmi,mi->pm", np.cross(b, c), n),
+                     np.einsum("pmi,mi->pm", np.cross(c, a), n),
+                     np.einsum("pmi,mi->pm", np.cross(a, b), n)], -1)
+    outside = bary.min(-1) < 0
+    return np.where(outside, np.abs(h), np.inf).min(axis=1)
+
+
 def nn_margin(P, Q):
     """Smallest gap between the nearest and second-nearest distance, both directions."""
     margins = []

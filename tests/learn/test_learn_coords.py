@@ -17,7 +17,7 @@ ill-conditioned, for the core as for this module (about 1e-16 D / h, see
 import numpy as np
 import pytest
 import torch
-from builders import diag, unit_normals
+from builders import diag, outside_plane_distance, unit_normals
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -64,19 +64,6 @@ def edges_of(f):
 def torch_w(p, v, f, dtype=F64, **kw):
     return mean_value_coordinates(torch.as_tensor(p, dtype=dtype), torch.as_tensor(v, dtype=dtype),
                                   f, **kw)
-
-
-def outside_plane_distance(p, v, f):
-    """Per point: the smallest distance to the plane of a face whose triangle it projects
-    outside of (inf if none) -- where single MVC weights are ill-conditioned."""
-    n = unit_normals(v, f)
-    h = p @ n.T - np.einsum("ij,ij->i", v[f[:, 0]], n)                    # (n, m)
-    a, b, c = (v[f[:, i]][None] - p[:, None] for i in range(3))            # (n, m, 3)
-    bary = np.stack([np.einsum("pmi,mi->pm", np.cross(b, c), n),
-                     np.einsum("pmi,mi->pm", np.cross(c, a), n),
-                     np.einsum("pmi,mi->pm", np.cross(a, b), n)], -1)
-    outside = bary.min(-1) < 0
-    return np.where(outside, np.abs(h), np.inf).min(axis=1)
 
 
 def parity_tol(p, v, f):
@@ -402,9 +389,11 @@ def test_float32_close_to_float64(name):
 def test_float32_recomputes_only_ill_conditioned_rows(monkeypatch):
     """Outside points go through float64 (else their weights would be off by up to ~1);
     points well inside the cage stay in float32; gradients of both kinds agree with
-    float64 ones."""
+    float64 ones. (The torch graph's rule, what CUDA tensors use; the CPU kernels compute
+    every row in float64: tests/learn/test_mvc_kernel_grad.py.)"""
     import cagekit_learn.coords as mod
 
+    monkeypatch.setattr(mod, "_KERNELS", [False])
     v, f = CAGES["template"]
     calls = []
     original = mod._unnormalised
