@@ -112,9 +112,11 @@ bench-learn: $(STAMP)
 	$(BIN)/python benchmarks/bench_learn.py --json out/bench_learn.json
 
 # the shipped models (cagekit_learn/models/NAME.pt and NAME.json), trained from their recipes
-# on sweethome3d-furniture (chairs: 1,500 steps, about 25 min on 2 cores); commit both files
+# on sweethome3d-furniture (chairs: 3,000 steps, about 45 min on 2 cores; tables: its
+# variations by amplify, 1 min, then 1,500 steps, about 25 min); commit both files
 models: $(STAMP) assets
 	$(BIN)/python -m cagekit_learn.make_shipped chairs
+	$(BIN)/python -m cagekit_learn.make_shipped tables
 
 # the shipped chairs model on unseen real seats, beside per-pair optimisation
 bench-learn-real: $(STAMP) assets

@@ -57,17 +57,22 @@ from cagekit.errors import OutsideCageWarning  # noqa: E402
 from cagekit.io import load_mesh  # noqa: E402
 from cagekit_learn.cage_repair import check_predicted_cage  # noqa: E402
 from cagekit_learn.inference import deform_with_model, predict_cages  # noqa: E402
-from cagekit_learn.make_shipped import config_of, training_folder, training_shapes  # noqa: E402
+from cagekit_learn.make_shipped import (  # noqa: E402
+    RECIPES,
+    config_of,
+    training_folder,
+    training_shapes,
+)
 from cagekit_learn.train import load_model, train  # noqa: E402
 
 METHODS = ("scale", "cage", "cage-80", "learned", "learned-raw", "learned+refine")
 FIGURES = ("cd", "dcotlap", "part_median", "part_worst", "planar_p95", "seconds")
 
 
-def test_pairs(held_out) -> list:
-    """(name, source, target): each held-out seat onto the next of its kind, and back."""
+def test_pairs(held_out, kinds=SEAT_KINDS) -> list:
+    """(name, source, target): each held-out shape onto the next of its kind, and back."""
     out = []
-    for kind in SEAT_KINDS:
+    for kind in kinds:
         seats = [(m, load_mesh(m.path)) for k, m in held_out if k == kind]
         for (a, mesh_a), (b, mesh_b) in zip(seats, seats[1:]):
             out.append((f"{kind}: {a.name} -> {b.name}", mesh_a, mesh_b))
@@ -195,6 +200,8 @@ def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--model", default="chairs",
                         help="a shipped model's name or a run folder (default chairs)")
+    parser.add_argument("--recipe", default="chairs", choices=sorted(RECIPES),
+                        help="whose held-out shapes make the test pairs (default chairs)")
     parser.add_argument("--train-steps", type=int,
                         help="train a model from the shipped recipe first (into --run-dir)")
     parser.add_argument("--run-dir", default="out/bench_learn_real")
@@ -204,8 +211,8 @@ def main(argv=None) -> dict:
     parser.add_argument("--json")
     args = parser.parse_args(argv)
 
-    train_seats, held_out = training_shapes("chairs")
-    pairs = test_pairs(held_out)
+    train_seats, held_out = training_shapes(args.recipe)
+    pairs = test_pairs(held_out, RECIPES[args.recipe]["kinds"])
     print(f"{len(train_seats)} training seats, {len(held_out)} held out, "
           f"{len(pairs)} test pairs")
     training, model_path = None, args.model
@@ -213,7 +220,7 @@ def main(argv=None) -> dict:
         folder = training_folder(train_seats, os.path.join(args.run_dir, "train"))
         run = os.path.join(args.run_dir, "run")
         shutil.rmtree(run, ignore_errors=True)
-        result = train(config_of("chairs", folder, run, args.train_steps), progress=False)
+        result = train(config_of(args.recipe, folder, run, args.train_steps), progress=False)
         training = {"steps": result.step, "seconds": result.seconds,
                     "pairs_per_second": result.pairs_per_second, "shapes": len(train_seats)}
         print(f"trained {result.step} steps in {result.seconds / 60:.1f} min, "

@@ -8,7 +8,11 @@ recipe (:data:`RECIPES`) and writes ``cagekit_learn/models/NAME.pt`` and ``NAME.
    catalogs; Scopia is never used), split by
    :func:`cagekit.datasets.sweethome3d.held_out_split` (one model in ``every`` of each
    kind held out for the benchmark, ``benchmarks/bench_learn_real.py``), linked into
-   ``RUN_DIR/train`` as ``000.obj, 001.obj, ...`` in that order;
+   ``RUN_DIR/train`` as ``000.obj, 001.obj, ...`` in that order; with the recipe's
+   ``amplify`` (``"all"``: every ordered pair), the variations of them that
+   :func:`cagekit.batch.amplify.amplify` accepts (per-pair cage optimisation, its
+   plausibility filter; made in ``RUN_DIR/amplified``) are linked after them, in the
+   manifest's order (the classical method as a teacher: more shapes of the kind);
 2. the first steps' fingerprint: a run of :data:`FINGERPRINT_STEPS` steps with the same
    config, its weights' SHA-256 and its last losses (``tests/learn/test_shipped.py``
    reruns it);
@@ -17,7 +21,10 @@ recipe (:data:`RECIPES`) and writes ``cagekit_learn/models/NAME.pt`` and ``NAME.
 
 Everything random is a function of the seed (:mod:`cagekit_learn.train`), so on one kind
 of machine (torch version, CPU instruction set, thread count, all recorded) the run is
-reproduced bit for bit.
+reproduced bit for bit. Both runs compute mean value coordinates with the torch graph of
+:mod:`cagekit_learn.coords` (:func:`~cagekit_learn.coords.compiled_kernels` off), the
+reference the compiled kernels are tested against: a change to the kernels does not change
+what a shipped model's recipe reproduces.
 """
 
 from __future__ import annotations
@@ -37,11 +44,12 @@ from cagekit.datasets.sweethome3d import FURNITURE_CATALOGS, SEAT_KINDS, held_ou
 from cagekit.errors import InputError
 from cagekit.io.files import atomic_output
 from cagekit_learn.checkpoint import load_checkpoint, save_checkpoint
+from cagekit_learn.coords import compiled_kernels
 from cagekit_learn.shipped import MODELS_DIR
 from cagekit_learn.train import TrainConfig, load_model, train
 
 __all__ = ["RECIPES", "FINGERPRINT_STEPS", "training_shapes", "training_folder",
-           "config_of", "weights_sha256", "machine", "first_steps", "make_model"]
+           "amplified_shapes", "config_of", "weights_sha256", "machine", "first_steps", "make_model"]
 
 #: what each shipped model is trained on, and for how long
 RECIPES = {
@@ -52,6 +60,16 @@ RECIPES = {
         "every": 4,
         "steps": 3000,
         "seed": 0,
+    },
+    "tables": {
+        "description": "tables of Debian's sweethome3d-furniture, its three furniture "
+                       "catalogs, and the variations cagekit amplify makes of them",
+        "kinds": ["table"],
+        "every": 4,
+        "steps": 1500,
+        "seed": 0,
+        "amplify": "all",
+        "alpha_parts": 60.0,
     },
 }
 #: steps of the fingerprint run
@@ -85,6 +103,42 @@ def training_folder(shapes: list, folder: str | os.PathLike) -> Path:
     for i, (_, model) in enumerate(shapes):
         (folder / f"{i:03d}.obj").symlink_to(os.path.abspath(model.path))
     return folder
+
+
+def amplified_shapes(folder: str | os.PathLike, out_dir: str | os.PathLike, pairs: str,
+                     seed: int = 0) -> list[dict]:
+    """Link the accepted variations of a training folder's shapes into it, after them.
+
+    Parameters
+    ----------
+    folder : str or os.PathLike
+        A folder of ``000.obj, 001.obj, ...`` (:func:`training_folder`).
+    out_dir : str or os.PathLike
+        Where :func:`cagekit.batch.amplify.amplify` writes (a rerun resumes).
+    pairs : str
+        Its ``pairs`` (``"all"``: every ordered pair of the folder's shapes).
+    seed : int
+
+    Returns
+    -------
+    list of dict
+        Per accepted variation, in the manifest's order: ``source``, ``target`` (the
+        folder's names) and ``file`` (the link's name).
+    """
+    from cagekit.batch.amplify import amplify  # the core's batch layer, only when asked
+
+    folder = Path(folder)
+    rows = amplify(str(folder), str(out_dir), pairs=pairs, seed=seed, drop_rejected=True)
+    start = len(list(folder.glob("*.obj")))
+    accepted = []
+    for row in rows:
+        if row["status"] != "ok":
+            continue
+        link = folder / f"{start + len(accepted):03d}.obj"
+        link.symlink_to(os.path.abspath(Path(out_dir) / "variations" / row["output"]))
+        accepted.append({"source": row["source"], "target": row["target"],
+                         "file": link.name})
+    return accepted
 
 
 def config_of(name: str, data: str | os.PathLike, run_dir: str | os.PathLike,
@@ -123,7 +177,8 @@ def first_steps(name: str, data: str | os.PathLike, run_dir: str | os.PathLike) 
         ``steps``, ``weights_sha256``, ``losses`` (the last step's terms) and
         :func:`machine`.
     """
-    result = train(config_of(name, data, run_dir, FINGERPRINT_STEPS), progress=False)
+    with compiled_kernels(False):  # the reference graph: see the module
+        result = train(config_of(name, data, run_dir, FINGERPRINT_STEPS), progress=False)
     return {"steps": result.step, "weights_sha256": weights_sha256(result.model.state_dict()),
             "losses": {k: float(v) for k, v in result.last_losses.items()}, **machine()}
 
@@ -156,10 +211,13 @@ def make_model(name: str, run_dir: str | os.PathLike, steps: int | None = None,
     run_dir = Path(run_dir)
     train_shapes, held_out = training_shapes(name, cache)
     data = training_folder(train_shapes, run_dir / "train")
+    variations = (amplified_shapes(data, run_dir / "amplified", recipe["amplify"],
+                                   recipe["seed"]) if recipe.get("amplify") else [])
     for old in ("first_steps", "run"):  # both runs start afresh
         shutil.rmtree(run_dir / old, ignore_errors=True)
     fingerprint = first_steps(name, data, run_dir / "first_steps")
-    result = train(config_of(name, data, run_dir / "run", steps), progress=True)
+    with compiled_kernels(False):  # the reference graph: see the module
+        result = train(config_of(name, data, run_dir / "run", steps), progress=True)
     payload = load_checkpoint(run_dir / "run")
     exported = {k: payload[k] for k in ("model", "model_config", "config", "step", "epoch",
                                         "skipped")}
@@ -174,7 +232,8 @@ def make_model(name: str, run_dir: str | os.PathLike, steps: int | None = None,
         "data": {"package": "sweethome3d-furniture", "catalogs": list(FURNITURE_CATALOGS),
                  "kinds": recipe["kinds"], "held_out_every": recipe["every"],
                  "train": [_entry(k, m) for k, m in train_shapes],
-                 "held_out": [_entry(k, m) for k, m in held_out]},
+                 "held_out": [_entry(k, m) for k, m in held_out],
+                 "amplified": variations},
         "training": {"steps": result.step, "skipped": result.skipped,
                      "seconds": round(result.seconds, 1),
                      "pairs_per_second": round(result.pairs_per_second, 2),
