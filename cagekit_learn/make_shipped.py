@@ -49,7 +49,8 @@ from cagekit_learn.shipped import MODELS_DIR
 from cagekit_learn.train import TrainConfig, load_model, train
 
 __all__ = ["RECIPES", "FINGERPRINT_STEPS", "training_shapes", "training_folder",
-           "amplified_shapes", "config_of", "weights_sha256", "machine", "first_steps", "make_model"]
+           "amplified_shapes", "config_of", "weights_sha256", "machine", "first_steps",
+           "make_model"]
 
 #: what each shipped model is trained on, and for how long
 RECIPES = {
