@@ -44,6 +44,7 @@ from cagekit.coords.mvc import FAR_BLEND, closest_point_weights
 from cagekit.coords.mvc_grad import mvc_vjp, mvc_weights_flagged
 from cagekit.errors import InputError
 from cagekit_learn.green import GreenBinding, green_coordinates
+from cagekit_learn.threads import torch_threads_kept
 
 __all__ = ["mean_value_coordinates", "CageBinding", "bind", "deform", "DEFAULT_SNAP",
            "METHODS", "compiled_kernels"]
@@ -364,8 +365,9 @@ class _KernelMVC(torch.autograd.Function):
 
     @staticmethod
     def forward(ctx, P, V, faces, snap, det_tol, skip):
-        w, flagged = mvc_weights_flagged(P.detach().numpy(), V.detach().numpy(), faces,
-                                         snap=snap, skip=skip.numpy(), det_tol=det_tol)
+        with torch_threads_kept():
+            w, flagged = mvc_weights_flagged(P.detach().numpy(), V.detach().numpy(), faces,
+                                             snap=snap, skip=skip.numpy(), det_tol=det_tol)
         flagged_t = torch.from_numpy(flagged)
         ctx.save_for_backward(P, V, flagged_t)
         ctx.args = (faces, snap, det_tol)
@@ -377,8 +379,9 @@ class _KernelMVC(torch.autograd.Function):
     def backward(ctx, grad_w, _grad_flagged):
         P, V, flagged = ctx.saved_tensors
         faces, snap, det_tol = ctx.args
-        gp, gv = mvc_vjp(P.numpy(), V.numpy(), faces, grad_w.double().numpy(), snap=snap,
-                         skip=flagged.numpy(), det_tol=det_tol)
+        with torch_threads_kept():
+            gp, gv = mvc_vjp(P.numpy(), V.numpy(), faces, grad_w.double().numpy(), snap=snap,
+                             skip=flagged.numpy(), det_tol=det_tol)
         return (torch.from_numpy(gp).to(P.dtype), torch.from_numpy(gv).to(V.dtype), None, None,
                 None, None)
 

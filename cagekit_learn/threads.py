@@ -1,4 +1,4 @@
-"""torch's intra-op threads for small work."""
+"""torch's intra-op threads: one for small work, and kept when numba runs in parallel."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from collections.abc import Iterator
 
 import torch
 
-__all__ = ["one_thread"]
+__all__ = ["one_thread", "torch_threads_kept"]
 
 
 @contextlib.contextmanager
@@ -29,3 +29,29 @@ def one_thread() -> Iterator[None]:
         yield
     finally:
         torch.set_num_threads(before)
+
+
+@contextlib.contextmanager
+def torch_threads_kept() -> Iterator[None]:
+    """Restore torch's intra-op thread count after the block, whatever ran in it.
+
+    numba's OpenMP threading layer sets the OpenMP thread count it shares with torch when a
+    parallel kernel (:mod:`cagekit.coords.mvc_grad`) launches: after the first kernel, torch
+    would run on numba's thread count instead of the user's (``OMP_NUM_THREADS``,
+    :func:`torch.set_num_threads`), and its sums would change order, so a run resumed from a
+    checkpoint would no longer give the weights of an uninterrupted one.
+
+    Examples
+    --------
+    >>> before = torch.get_num_threads()
+    >>> with torch_threads_kept():
+    ...     torch.set_num_threads(before + 1)
+    >>> torch.get_num_threads() == before
+    True
+    """
+    before = torch.get_num_threads()
+    try:
+        yield
+    finally:
+        if torch.get_num_threads() != before:
+            torch.set_num_threads(before)

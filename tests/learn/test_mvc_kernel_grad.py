@@ -208,3 +208,20 @@ def test_property_parity_with_the_torch_graph(seed, scale, spread):
     ref = weights_and_grads(p, v, f, F64, False, G=ker[3])
     assert_parity(ker[:3], ref[:3], 1e-8)
     assert np.isfinite(ker[1]).all() and np.isfinite(ker[2]).all()
+
+
+def test_the_kernels_leave_torch_on_the_users_thread_count():
+    # numba's OpenMP layer shares the OpenMP thread count with torch; without the restore
+    # torch ran on numba's count after the first kernel, and a resumed training run no longer
+    # gave the weights of an uninterrupted one
+    v, f = star_cage(3)
+    cage = torch.tensor(v, requires_grad=True)
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        w = mean_value_coordinates(torch.tensor(v).mean(0, keepdim=True) * 0.9, cage, f)
+        (w @ cage).sum().backward()
+        assert torch.get_num_threads() == 1
+    finally:
+        torch.set_num_threads(before)
+    assert torch.isfinite(cage.grad).all()
