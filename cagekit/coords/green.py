@@ -58,7 +58,7 @@ from numpy.typing import ArrayLike
 from cagekit.cage import cage_topology
 from cagekit.coords.fastangle import angle_from_sin_cos
 from cagekit.coords.fastlog import log_ratio
-from cagekit.coords.lanes import load_lanes
+from cagekit.coords.lanes import cross, load_lanes
 from cagekit.errors import InputError
 from cagekit.geometry.frame import bounding_box_diagonal
 from cagekit.typed import Floats, Ints, Vertices
@@ -78,9 +78,7 @@ _INV_FOUR_PI = 1.0 / (4.0 * np.pi)
 def _corner(ax, ay, az, bx, by, bz):
     """Cosine and sine of the angle between two vectors, both times their lengths' product
     (the sine from the cross product's length: accurate at every angle)."""
-    cx = ay * bz - az * by
-    cy = az * bx - ax * bz
-    cz = ax * by - ay * bx
+    cx, cy, cz = cross(ax, ay, az, bx, by, bz)
     return ax * bx + ay * by + az * bz, np.sqrt(cx * cx + cy * cy + cz * cz)
 
 

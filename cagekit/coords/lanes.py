@@ -1,7 +1,9 @@
-"""Blocks of points for the vectorised coordinate kernels (:mod:`.mvc`, :mod:`~.coords.green`).
+"""Blocks of points for the vectorised coordinate kernels (:mod:`.mvc`, :mod:`.mvc_grad`,
+:mod:`~.coords.green`).
 
-Both kernels evaluate a block of points at a time, one point per lane, so that LLVM
-vectorises their loops over the lanes; this loads a block.
+The kernels evaluate a block of points at a time, one point per lane, so that LLVM
+vectorises their loops over the lanes; this loads a block, and holds the small vector
+algebra their lane loops share.
 """
 
 from __future__ import annotations
@@ -9,7 +11,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["load_lanes"]
+__all__ = ["load_lanes", "cross"]
 
 
 @numba.njit(cache=True, inline="always")
@@ -22,3 +24,10 @@ def load_lanes(points: np.ndarray, start: int, P: np.ndarray) -> None:
         P[0, lane] = points[src, 0]
         P[1, lane] = points[src, 1]
         P[2, lane] = points[src, 2]
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def cross(ax: float, ay: float, az: float, bx: float, by: float,
+          bz: float) -> tuple[float, float, float]:
+    """The cross product ``a x b`` of two vectors given by their components (numba)."""
+    return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx

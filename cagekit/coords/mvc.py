@@ -29,7 +29,7 @@ from numpy.typing import ArrayLike
 
 from cagekit.cage import cage_topology, check_cage, distance_in_diagonals
 from cagekit.coords.fastangle import half_angle_over_sin
-from cagekit.coords.lanes import load_lanes
+from cagekit.coords.lanes import cross, load_lanes
 from cagekit.errors import InputError
 from cagekit.geometry.frame import bounding_box_diagonal
 from cagekit.typed import Floats
@@ -42,11 +42,6 @@ DEFAULT_SNAP = 1e-13
 #: distances from the centre of the cage's bounding box, in bounding-box diagonals, between
 #: which MVC is blended into the affine extension; beyond the second, the extension alone
 FAR_BLEND = (10.0, 20.0)
-
-
-@numba.njit(cache=True, error_model="numpy", inline="always")
-def _cross(ax, ay, az, bx, by, bz):
-    return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -143,7 +138,7 @@ def _snap_weights(x, cage_v, faces, edges, face_n, face_off, snap, row):
         for r in range(3):
             p0 = cage_v[faces[f, (r + 1) % 3]] - x
             p1 = cage_v[faces[f, (r + 2) % 3]] - x
-            c0, c1, c2 = _cross(p0[0], p0[1], p0[2], p1[0], p1[1], p1[2])
+            c0, c1, c2 = cross(p0[0], p0[1], p0[2], p1[0], p1[1], p1[2])
             bary[r] = c0 * n[0] + c1 * n[1] + c2 * n[2]
         total = bary.sum()
         if total > 0.0 and bary.min() >= -1e-12 * total:
@@ -204,9 +199,7 @@ def _mvc_lanes(P, cage_v, faces, edges, face_edges, face_signs, face_n, face_off
             ubx = U[0, b, lane]
             uby = U[1, b, lane]
             ubz = U[2, b, lane]
-            cx = uay * ubz - uaz * uby
-            cy = uaz * ubx - uax * ubz
-            cz = uax * uby - uay * ubx
+            cx, cy, cz = cross(uax, uay, uaz, ubx, uby, ubz)
             s = np.sqrt(cx * cx + cy * cy + cz * cz)
             c = uax * ubx + uay * uby + uaz * ubz
             g = half_angle_over_sin(s, c)

@@ -38,6 +38,7 @@ from numpy.typing import ArrayLike
 
 from cagekit.cage import cage_topology
 from cagekit.coords.fastangle import half_angle_over_sin
+from cagekit.coords.lanes import cross
 from cagekit.errors import InputError
 from cagekit.typed import Bools, Floats
 
@@ -93,9 +94,7 @@ def _forward_lanes(P, V, faces, edges, face_edges, face_signs, nrm, off, snap_d,
             ubx = VERT[0, b, lane]
             uby = VERT[1, b, lane]
             ubz = VERT[2, b, lane]
-            cx = uay * ubz - uaz * uby
-            cy = uaz * ubx - uax * ubz
-            cz = uax * uby - uay * ubx
+            cx, cy, cz = cross(uax, uay, uaz, ubx, uby, ubz)
             s2 = cx * cx + cy * cy + cz * cz
             c = uax * ubx + uay * uby + uaz * ubz
             taylor = c > 0.0 and s2 < _TAYLOR_T * c * c
@@ -221,6 +220,31 @@ def _keep_lanes(skip, b, start, stop, keep):
         keep[lane] = i < stop and not skip[b, i]
 
 
+@numba.njit(cache=True, inline="always")
+def _forward_scratch(k, e, m):
+    """A thread's buffers for :func:`_forward_lanes` (``k`` vertices, ``e`` edges, ``m``
+    faces): ``P, VERT, EDGE, FACE, LAM, W, bad`` and the ``keep`` mask."""
+    L = LANES
+    return (np.empty((3, L)), np.empty((4, k, L)), np.empty((7, e, L)), np.empty((4, m, L)),
+            np.empty((3, m, L)), np.empty((k, L)), np.empty(L), np.empty(L, dtype=np.bool_))
+
+
+@numba.njit(cache=True, inline="always")
+def _chunking(B, n, n_chunks):
+    """For ``B`` items of ``n`` points: blocks an item, blocks in all, and the chunks the
+    threads share (at most ``n_chunks``, at most one a block)."""
+    nb = (n + LANES - 1) // LANES
+    return nb, B * nb, max(1, min(B * nb, n_chunks))
+
+
+@numba.njit(cache=True, inline="always")
+def _block(blk, nb, n):
+    """Block ``blk`` of a batch of ``nb`` blocks an item of ``n`` points: the item, the
+    block's first point and the one past its last."""
+    start = (blk % nb) * LANES
+    return blk // nb, start, min(start + LANES, n)
+
+
 @numba.njit(parallel=True, cache=True, error_model="numpy")
 def _forward_kernel(points, cage_v, faces, edges, face_edges, face_signs, nrm, off, snap_d,
                     thr_s2, det_tol, skip, n_chunks, out, flagged):
@@ -229,23 +253,11 @@ def _forward_kernel(points, cage_v, faces, edges, face_edges, face_signs, nrm, o
     k = cage_v.shape[1]
     e = edges.shape[0]
     m = faces.shape[0]
-    L = LANES
-    nb = (n + L - 1) // L
-    total = B * nb
-    n_chunks = max(1, min(total, n_chunks))
+    nb, total, n_chunks = _chunking(B, n, n_chunks)
     for chunk in numba.prange(n_chunks):
-        P = np.empty((3, L))
-        VERT = np.empty((4, k, L))
-        EDGE = np.empty((7, e, L))
-        FACE = np.empty((4, m, L))
-        LAM = np.empty((3, m, L))
-        W = np.empty((k, L))
-        bad = np.empty(L)
-        keep = np.empty(L, dtype=np.bool_)
+        P, VERT, EDGE, FACE, LAM, W, bad, keep = _forward_scratch(k, e, m)
         for blk in range(chunk * total // n_chunks, (chunk + 1) * total // n_chunks):
-            b = blk // nb
-            start = (blk % nb) * L
-            stop = min(start + L, n)
+            b, start, stop = _block(blk, nb, n)
             _keep_lanes(skip, b, start, stop, keep)
             if not _load_block(points, b, start, keep, P):
                 for i in range(start, stop):
@@ -461,17 +473,9 @@ def _vjp_kernel(points, cage_v, faces, edges, face_edges, face_signs, nrm, off, 
     e = edges.shape[0]
     m = faces.shape[0]
     L = LANES
-    nb = (n + L - 1) // L
-    total = B * nb
-    n_chunks = max(1, min(total, n_chunks))
+    nb, total, n_chunks = _chunking(B, n, n_chunks)
     for chunk in numba.prange(n_chunks):
-        P = np.empty((3, L))
-        VERT = np.empty((4, k, L))
-        EDGE = np.empty((7, e, L))
-        FACE = np.empty((4, m, L))
-        LAM = np.empty((3, m, L))
-        W = np.empty((k, L))
-        bad = np.empty(L)
+        P, VERT, EDGE, FACE, LAM, W, bad, keep = _forward_scratch(k, e, m)
         gW = np.empty((k, L))
         FR = np.empty((7, m, L))
         GE = np.empty((7, e, L))
@@ -479,11 +483,8 @@ def _vjp_kernel(points, cage_v, faces, edges, face_edges, face_signs, nrm, off, 
         ACC = np.zeros((3, k + 1, L))
         inv_s = np.empty(L)
         dot = np.empty(L)
-        keep = np.empty(L, dtype=np.bool_)
         for blk in range(chunk * total // n_chunks, (chunk + 1) * total // n_chunks):
-            b = blk // nb
-            start = (blk % nb) * L
-            stop = min(start + L, n)
+            b, start, stop = _block(blk, nb, n)
             _keep_lanes(skip, b, start, stop, keep)
             for _ in range(2):  # once more if lanes were dropped
                 kept = _load_block(points, b, start, keep, P)
