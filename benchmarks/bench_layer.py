@@ -21,17 +21,25 @@ accuracy column is the largest weight error against the core's float64
 :func:`cagekit.coords.mean_value_coordinates` on the same points (float32 inputs rounded
 first).
 
+``--train-steps N`` then trains the default model ``N`` steps at batch 8 on procedural
+chairs (``synthetic:chairs:64``, 1,024 points, seed 0), once with the kernels and once with
+the torch graph, and prints each run's pairs/s and the largest difference of the logged
+losses at the same steps (issue 34: training throughput, and training curves unchanged).
+
 Usage::
 
-    python benchmarks/bench_layer.py [--repeats 5] [--threads N] [--json FILE]
+    python benchmarks/bench_layer.py [--repeats 5] [--threads N] [--train-steps 60]
+        [--json FILE]
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
 import json
 import math
 import platform
+import tempfile
 import time
 
 import numpy as np
@@ -84,6 +92,25 @@ def timed(fn, P, V, G, repeats):
     return best, w.detach()
 
 
+def training_runs(steps: int) -> dict:
+    """Pairs/s of ``steps`` training steps with the kernels and with the torch graph, and
+    the largest relative difference of their logged losses at the same steps."""
+    from cagekit_learn.train import TrainConfig, train
+
+    runs, losses = {}, {}
+    for name, enabled in (("kernels", True), ("torch graph", False)):
+        with tempfile.TemporaryDirectory() as run_dir, compiled_kernels(enabled):
+            config = TrainConfig(data="synthetic:chairs:64", run_dir=run_dir, seed=0,
+                                 max_steps=steps, epochs=1_000_000)
+            result = train(config, progress=False)
+            with open(f"{run_dir}/log.csv", newline="") as handle:
+                losses[name] = np.array([float(r["loss"]) for r in csv.DictReader(handle)])
+        runs[name] = {"steps": result.step, "pairs_per_s": result.pairs_per_second}
+    a, b = losses["kernels"], losses["torch graph"]
+    return {"runs": runs, "max_relative_loss_difference":
+            float(np.max(np.abs(a - b) / np.abs(b)))}
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--batch", type=int, default=8)
@@ -91,6 +118,8 @@ def main(argv=None):
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--threads", type=int, default=None,
                         help="torch and numba threads (default: theirs)")
+    parser.add_argument("--train-steps", type=int, default=0,
+                        help="also time this many training steps each way")
     parser.add_argument("--json", default=None, help="write the figures here")
     args = parser.parse_args(argv)
     if args.threads:
@@ -142,10 +171,20 @@ def main(argv=None):
     for r in rows:
         if r["method"] == "kernels":
             print(f"kernels vs torch graph ({r['dtype']}): {base[r['dtype']] / r['ms']:.1f}x")
+    training = training_runs(args.train_steps) if args.train_steps else None
+    if training:
+        runs = training["runs"]
+        for name, run in runs.items():
+            print(f"training, {name:<12} {run['steps']} steps, batch 8: "
+                  f"{run['pairs_per_s']:.2f} pairs/s")
+        print(f"training, kernels vs torch graph: "
+              f"{runs['kernels']['pairs_per_s'] / runs['torch graph']['pairs_per_s']:.2f}x; "
+              f"losses at the same steps differ by {training['max_relative_loss_difference']:.1e} "
+              f"(relative) at most")
     if args.json:
         with open(args.json, "w") as handle:
-            json.dump({"rows": rows, "batch": args.batch, "points": args.points}, handle,
-                      indent=2)
+            json.dump({"rows": rows, "batch": args.batch, "points": args.points,
+                       "training": training}, handle, indent=2)
 
 
 if __name__ == "__main__":
