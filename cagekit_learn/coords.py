@@ -47,7 +47,7 @@ from cagekit_learn.green import GreenBinding, green_coordinates
 from cagekit_learn.threads import torch_threads_kept
 
 __all__ = ["mean_value_coordinates", "CageBinding", "bind", "deform", "DEFAULT_SNAP",
-           "METHODS", "compiled_kernels"]
+           "METHODS", "compiled_kernels", "kernels_enabled"]
 
 METHODS = ("mvc", "green")
 
@@ -358,6 +358,19 @@ def compiled_kernels(enabled: bool) -> Iterator[None]:
         _KERNELS[0] = before
 
 
+def kernels_enabled() -> bool:
+    """Whether CPU tensors use compiled code (this module's MVC kernels, libigl in
+    :func:`cagekit_learn.enclosure.enclosure_loss`); see :func:`compiled_kernels`.
+
+    Examples
+    --------
+    >>> with compiled_kernels(False):
+    ...     kernels_enabled()
+    False
+    """
+    return _KERNELS[0]
+
+
 class _KernelMVC(torch.autograd.Function):
     """MVC of CPU tensors by :mod:`cagekit.coords.mvc_grad`: returns the weights (zero on
     flagged rows) and the flags; the backward pass is the kernels' vector-Jacobian product
@@ -531,7 +544,7 @@ def _weights_and_faces(points, cage_v, cage_f, snap, chunk_size):
 
     if n == 0:
         out = Pc.new_zeros((B, 0, k))
-    elif device.type == "cpu" and _KERNELS[0]:
+    elif device.type == "cpu" and kernels_enabled():
         out = _blend_far_rows(Pc, Vc, faces_np,
                               _kernel_weights(Pc, Vc, nrm, off, snap_d, snap, cst, chunk_size))
     else:

@@ -61,6 +61,7 @@ RECIPES = {
         "every": 4,
         "steps": 3000,
         "seed": 0,
+        "alpha_parts": 60.0,
     },
     "tables": {
         "description": "tables of Debian's sweethome3d-furniture, its three furniture "
@@ -164,9 +165,14 @@ def weights_sha256(state_dict: dict) -> str:
 
 
 def machine() -> dict:
-    """What a bit-for-bit comparison depends on."""
+    """What a bit-for-bit comparison depends on: torch's version, threads and instruction
+    set, and the CPU model as LLVM names it (``icelake-server``, ``znver5``): torch's
+    matrix products pick kernels by CPU model too, not only by instruction set."""
+    import llvmlite.binding  # numba's, installed with the core
+
     return {"torch": torch.__version__, "threads": torch.get_num_threads(),
-            "cpu_capability": torch.backends.cpu.get_cpu_capability()}
+            "cpu_capability": torch.backends.cpu.get_cpu_capability(),
+            "cpu": llvmlite.binding.get_host_cpu_name()}
 
 
 def first_steps(name: str, data: str | os.PathLike, run_dir: str | os.PathLike) -> dict:
@@ -212,10 +218,12 @@ def make_model(name: str, run_dir: str | os.PathLike, steps: int | None = None,
     run_dir = Path(run_dir)
     train_shapes, held_out = training_shapes(name, cache)
     data = training_folder(train_shapes, run_dir / "train")
+    # every run starts afresh: amplify would resume a variations folder an earlier run (of
+    # other code) left, and its manifest would not be what this code accepts
+    for old in ("amplified", "first_steps", "run"):
+        shutil.rmtree(run_dir / old, ignore_errors=True)
     variations = (amplified_shapes(data, run_dir / "amplified", recipe["amplify"],
                                    recipe["seed"]) if recipe.get("amplify") else [])
-    for old in ("first_steps", "run"):  # both runs start afresh
-        shutil.rmtree(run_dir / old, ignore_errors=True)
     fingerprint = first_steps(name, data, run_dir / "first_steps")
     with compiled_kernels(False):  # the reference graph: see the module
         result = train(config_of(name, data, run_dir / "run", steps), progress=True)

@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 
 from cagekit.cage.fitting import template_cage
 from cagekit.errors import InputError
+from cagekit_learn.coords import compiled_kernels
 from cagekit_learn.enclosure import enclosure_loss, triangle_distances, winding_numbers
 
 
@@ -91,6 +92,33 @@ def test_float32_agrees_with_float64():
     l64 = enclosure_loss(torch.as_tensor(P), torch.as_tensor(v)[None], f)
     l32 = enclosure_loss(torch.as_tensor(P).float(), torch.as_tensor(v).float()[None], f)
     assert l32.item() == pytest.approx(l64.item(), rel=1e-4)
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 10_000), spread=st.sampled_from([0.5, 1.5, 3.0]),
+       dtype=st.sampled_from([torch.float32, torch.float64]))
+def test_libigl_s_side_and_nearest_face_give_the_torch_graph_s_loss_and_gradient(seed, spread,
+                                                                                 dtype):
+    # the CPU default finds the side and the nearest face with libigl, the graph (CUDA,
+    # compiled_kernels(False)) with all point-face pairs; points on and near faces included
+    v, f = _cage(seed % 7)
+    rng = np.random.default_rng(seed)
+    P = rng.uniform(-spread, spread, size=(2, 150, 3))
+    corners = v[f[rng.integers(0, len(f), 40)]]
+    w = rng.dirichlet([1, 1, 1], size=40)
+    P[0, :40] = np.einsum("ni,nij->nj", w, corners) * (1 + rng.normal(0, 1e-3, (40, 1)))
+    results = []
+    for enabled in (True, False):
+        V = torch.tensor(np.stack([v, v * 1.1]), dtype=dtype, requires_grad=True)
+        with compiled_kernels(enabled):
+            loss = enclosure_loss(torch.tensor(P, dtype=dtype), V, f)
+        loss.sum().backward()
+        results.append((loss.detach(), V.grad))
+    (l_igl, g_igl), (l_graph, g_graph) = results
+    tol = 1e-5 if dtype == torch.float32 else 1e-12
+    assert torch.allclose(l_igl, l_graph, rtol=tol, atol=tol)
+    assert torch.allclose(g_igl, g_graph, rtol=10 * tol, atol=10 * tol * float(g_graph.abs().max()))
+    assert float(l_graph.sum()) > 0  # points outside: the test is not of zeros
 
 
 @pytest.mark.parametrize("bad", [

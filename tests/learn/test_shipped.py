@@ -31,6 +31,11 @@ def test_each_model_ships_with_its_recipe_and_loads_by_name(name):
     recipe = shipped.recipe(name)
     assert recipe["training"]["steps"] == payload["step"]
     assert recipe["first_steps"]["steps"] == make_shipped.FINGERPRINT_STEPS
+    # the committed model is the recipe's: its steps, its part term, a CPU model recorded
+    made_by = make_shipped.RECIPES[name]
+    assert recipe["training"]["steps"] == made_by["steps"]
+    assert recipe["training"]["config"]["alpha_parts"] == made_by.get("alpha_parts", 0.0)
+    assert set(make_shipped.machine()) <= set(recipe["first_steps"])
     train, held_out = recipe["data"]["train"], recipe["data"]["held_out"]
     assert len(train) >= 2 * len(held_out) > 0  # one shape in four of each kind held out
     files = {(e["catalog"], e["file"]) for e in train}
@@ -72,7 +77,7 @@ def test_deform_and_amplify_take_the_shipped_name(tmp_path):
 
 
 @pytest.mark.skipif(not INSTALLED, reason="needs Debian's sweethome3d-furniture")
-@pytest.mark.parametrize("name", ["chairs"])  # tables: its variations differ on a rerun (open)
+@pytest.mark.parametrize("name", ["chairs", "tables"])
 def test_a_fresh_run_of_the_recipe_reproduces_the_first_steps(tmp_path, name):
     recorded = shipped.recipe(name)
     recipe = make_shipped.RECIPES[name]
@@ -81,7 +86,7 @@ def test_a_fresh_run_of_the_recipe_reproduces_the_first_steps(tmp_path, name):
     folder = make_shipped.training_folder(train, tmp_path / "train")
     expected = recorded["first_steps"]
     here = make_shipped.machine()
-    same_machine = all(here[k] == expected[k] for k in ("torch", "threads", "cpu_capability"))
+    same_machine = all(here[k] == expected.get(k) for k in here)  # a CPU model recorded
     if recipe.get("amplify"):  # the same variations accepted, linked in the same order
         made = make_shipped.amplified_shapes(folder, tmp_path / "amplified", recipe["amplify"],
                                              recipe["seed"])
@@ -89,11 +94,14 @@ def test_a_fresh_run_of_the_recipe_reproduces_the_first_steps(tmp_path, name):
             assert made == recorded["data"]["amplified"]
         else:  # a variation at the filter's edge may go the other way
             assert abs(len(made) - len(recorded["data"]["amplified"])) <= 2
+            if made != recorded["data"]["amplified"]:
+                pytest.skip("this CPU's amplify accepts other variations: the first steps "
+                            "train on other shapes")
     fresh = make_shipped.first_steps(name, folder, tmp_path / "run")
     if same_machine:  # bit for bit
         assert fresh["weights_sha256"] == expected["weights_sha256"]
         assert fresh["losses"] == expected["losses"]
-    else:  # another instruction set or thread count rounds differently
+    else:  # another CPU, instruction set or thread count rounds differently
         for key, value in expected["losses"].items():
             assert fresh["losses"][key] == pytest.approx(value, rel=1e-4)
     payload = load_checkpoint(tmp_path / "run")
