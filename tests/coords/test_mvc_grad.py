@@ -50,7 +50,7 @@ def well_conditioned_points(v, f, rng, n=200, split=False):
 
 @pytest.mark.parametrize("name", ["box", "template", "star"])
 def test_weights_equal_the_core(name):
-    """To 1e-12 inside; outside, where the weights' sum cancels, relative to their 1-norm
+    """To 1e-12 inside; outside, where the weights' sum cancels, to 4e-12 of their 1-norm
     (the core and the kernels are then both about that far from a 40-digit evaluation)."""
     v, f = {"box": box_cage(), "template": template_cage(), "star": star_cage()}[name]
     inside, outside = well_conditioned_points(v, f, np.random.default_rng(1), split=True)
@@ -58,7 +58,9 @@ def test_weights_equal_the_core(name):
         w, flagged = mvc_weights_flagged(p[None], v[None], f)
         ref = core_mvc(p, v, f)
         assert not flagged.any()
-        scale = np.abs(ref).sum(axis=1) if relative else 1.0
+        # outside: 4e-12 of the 1-norm (a CPU without FMA, make test-emulated, reaches
+        # 1.2e-12; one with it, 1e-12)
+        scale = 4 * np.abs(ref).sum(axis=1) if relative else 1.0
         assert (np.abs(w[0] - ref).max(axis=1) <= 1e-12 * scale).all()
         assert np.abs(w[0].sum(axis=1) - 1).max() <= 1e-13
 

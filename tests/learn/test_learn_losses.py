@@ -562,3 +562,35 @@ def test_shape_terms_zero_at_rest(case):
 def test_paper_weights():
     assert tl.ALPHA_MVC == 1.0
     assert tl.ALPHA_SHAPE == 0.1
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 10_000), sizes=st.sampled_from([(1, 7), (40, 25), (300, 500)]),
+       dtype=st.sampled_from([torch.float32, torch.float64]))
+def test_the_k_d_trees_find_the_torch_graph_s_neighbours(seed, sizes, dtype):
+    # CPU tensors take scipy's k-d trees for the neighbour searches, the graph (CUDA,
+    # compiled_kernels(False)) takes cdist: the same Chamfer value and gradient, the same
+    # neighbourhoods, each point first in its own (coincident points included)
+    from cagekit_learn.coords import compiled_kernels
+
+    rng = np.random.default_rng(seed)
+    P = rng.normal(size=(2, sizes[0], 3))
+    Q = rng.normal(size=(2, sizes[1], 3))
+    P[1, : sizes[0] // 2] = P[1, 0]  # coincident points
+    results = []
+    for enabled in (True, False):
+        Pt = torch.tensor(P, dtype=dtype, requires_grad=True)
+        with compiled_kernels(enabled):
+            value = tl.chamfer_loss(Pt, torch.tensor(Q, dtype=dtype))
+            index = tl.knn_neighborhoods(Pt, k=6)
+        value.sum().backward()
+        results.append((value.detach(), Pt.grad, index))
+    (v_kd, g_kd, i_kd), (v_graph, g_graph, i_graph) = results
+    assert torch.allclose(v_kd, v_graph, rtol=1e-6, atol=0)
+    assert torch.equal(i_kd[:, :, 0], torch.arange(sizes[0]).expand(2, -1))
+    assert torch.equal(i_graph[:, :, 0], i_kd[:, :, 0])
+    # neighbours beyond the first agree where there are no ties (item 0: no coincident points)
+    d = lambda i: np.linalg.norm(P[0][i.numpy()] - P[0][:, None], axis=-1)  # noqa: E731
+    np.testing.assert_allclose(d(i_kd[0]), d(i_graph[0]), rtol=1e-6, atol=1e-12)
+    # the gradient of the items' Chamfer where no point ties for its nearest
+    assert torch.allclose(g_kd[0], g_graph[0], rtol=1e-5, atol=1e-8)

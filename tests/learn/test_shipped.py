@@ -101,8 +101,10 @@ def test_a_fresh_run_of_the_recipe_reproduces_the_first_steps(tmp_path, name):
     if same_machine:  # bit for bit
         assert fresh["weights_sha256"] == expected["weights_sha256"]
         assert fresh["losses"] == expected["losses"]
-    else:  # another CPU, instruction set or thread count rounds differently
+    else:  # another CPU, instruction set or thread count rounds differently; amplify's
+        # variations, optimised on another CPU, differ too (1e-3 under make test-emulated)
+        rel = 1e-2 if recipe.get("amplify") else 1e-4
         for key, value in expected["losses"].items():
-            assert fresh["losses"][key] == pytest.approx(value, rel=1e-4)
+            assert fresh["losses"][key] == pytest.approx(value, rel=rel)
     payload = load_checkpoint(tmp_path / "run")
     assert payload["step"] == make_shipped.FINGERPRINT_STEPS
