@@ -117,10 +117,9 @@ def _nearest_kdtree(P: torch.Tensor, Q: torch.Tensor) -> tuple[torch.Tensor, tor
     same neighbours but where two are equally near."""
     from scipy.spatial import cKDTree
 
-    workers = torch.get_num_threads()
     p, q = P.numpy(), Q.numpy()
-    to_q = np.stack([cKDTree(q[b]).query(p[b], workers=workers)[1] for b in range(len(p))])
-    to_p = np.stack([cKDTree(p[b]).query(q[b], workers=workers)[1] for b in range(len(p))])
+    to_q = np.stack([cKDTree(q[b]).query(p[b])[1] for b in range(len(p))])
+    to_p = np.stack([cKDTree(p[b]).query(q[b])[1] for b in range(len(p))])
     return torch.from_numpy(to_q.astype(np.int64)), torch.from_numpy(to_p.astype(np.int64))
 
 
@@ -129,13 +128,12 @@ def _knn_kdtree(X: torch.Tensor, k: int) -> torch.Tensor:
     (moved there when coincident points came before it, added when they took every slot)."""
     from scipy.spatial import cKDTree
 
-    workers = torch.get_num_threads()
     x = X.numpy()
     B, n = x.shape[:2]
     out = np.empty((B, n, k), dtype=np.int64)
     own = np.arange(n)
     for b in range(B):
-        index = np.asarray(cKDTree(x[b]).query(x[b], k=k, workers=workers)[1]).reshape(n, k)
+        index = np.asarray(cKDTree(x[b]).query(x[b], k=k)[1]).reshape(n, k)
         for i in np.nonzero(index[:, 0] != own)[0]:
             others = index[i][index[i] != i]
             index[i] = np.concatenate(([i], others))[:k]
