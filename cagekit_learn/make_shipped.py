@@ -132,7 +132,7 @@ def amplified_shapes(folder: str | os.PathLike, out_dir: str | os.PathLike, pair
     folder = Path(folder)
     rows = amplify(str(folder), str(out_dir), pairs=pairs, seed=seed, drop_rejected=True)
     start = len(list(folder.glob("*.obj")))
-    accepted = []
+    accepted: list[dict] = []
     for row in rows:
         if row["status"] != "ok":
             continue
