@@ -224,3 +224,57 @@ def small_humanoid_data(out):
 
     return humanoid_data.write(out, poses=2, train_poses=2, landmarks=40, resolution=0.5,
                                bodies=("stocky",), novel=("a_pose",))
+
+
+# ------------------------------------------------------------- cages for the coordinates
+
+
+def star_cage(seed, subdivisions=2, spread=0.4):
+    """A non-convex, star-shaped cage: an icosphere with random radii."""
+    from cagekit.cage.shapes import icosphere_cage
+
+    v, f = icosphere_cage(subdivisions)
+    r = np.random.default_rng(seed).uniform(1 - spread, 1 + spread, len(v))
+    return v * r[:, None], f
+
+
+def sliver_cage():
+    """A box whose top square is a fan around a point 1e-9 from one of its sides.
+
+    Two of the fan's triangles are near-degenerate: one is a sliver of height 1e-9, one has
+    an angle of almost 180 degrees.
+    """
+    from cagekit.cage.shapes import box_cage
+
+    v, f = box_cage(1)
+    top = np.all(v[f][:, :, 2] == 1.0, axis=1)
+    # boundary loop of the top square, in the faces' orientation
+    nxt = {}
+    directed = {(a, b) for face in f[top] for a, b in zip(face, np.roll(face, -1))}
+    for a, b in directed:
+        if (b, a) not in directed:
+            nxt[a] = b
+    loop = [next(iter(nxt))]
+    while len(loop) < 4:
+        loop.append(nxt[loop[-1]])
+    x = len(v)
+    vv = np.vstack([v, [[0.3, 1.0 - 1e-9, 1.0]]])
+    fan = [(loop[i], loop[(i + 1) % 4], x) for i in range(4)]
+    return vv, np.vstack([f[~top], np.array(fan)])
+
+
+def _cages():
+    from cagekit.cage.shapes import box_cage, icosphere_cage
+
+    return {
+        "box1": box_cage(1),
+        "box3": box_cage(3),
+        "ico1": icosphere_cage(1),
+        "star": star_cage(0),
+        "flat-box": box_cage(2, half_extent=(3.0, 1.0, 0.05)),
+        "sliver": sliver_cage(),
+    }
+
+
+#: the coordinates' test cages by name (convex, non-convex, flat, with sliver faces)
+CAGES = _cages()

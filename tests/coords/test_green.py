@@ -9,10 +9,10 @@ within 2 D; similarities of the cage move the points by the same similarity to 1
 import igl
 import numpy as np
 import pytest
-from builders import CAGE, SHAPE, cagekit, diag, load_obj
+from builders import CAGE, CAGES, SHAPE, cagekit, diag, load_obj
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from test_mvc import CAGES, _near_points
+from test_mvc import _near_points
 
 from cagekit import InputError, bind
 from cagekit.cage.shapes import box_cage, icosphere_cage

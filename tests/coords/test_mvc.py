@@ -15,54 +15,14 @@ D is the cage's bounding-box diagonal. Bounds tested:
 import igl
 import numpy as np
 import pytest
-from builders import diag, unit_normals
+from builders import CAGES, diag, sliver_cage, star_cage, unit_normals
 from hypothesis import given
 from hypothesis import strategies as st
 
 from cagekit import CageError, InputError
 from cagekit.cage import cage_encloses
-from cagekit.cage.shapes import box_cage, icosphere_cage
+from cagekit.cage.shapes import box_cage
 from cagekit.coords import bind, mean_value_coordinates, mean_value_coordinates_textbook
-
-
-def star_cage(seed, subdivisions=2, spread=0.4):
-    """A non-convex, star-shaped cage: an icosphere with random radii."""
-    v, f = icosphere_cage(subdivisions)
-    r = np.random.default_rng(seed).uniform(1 - spread, 1 + spread, len(v))
-    return v * r[:, None], f
-
-
-def sliver_cage():
-    """A box whose top square is a fan around a point 1e-9 from one of its sides.
-
-    Two of the fan's triangles are near-degenerate: one is a sliver of height 1e-9, one has
-    an angle of almost 180 degrees.
-    """
-    v, f = box_cage(1)
-    top = np.all(v[f][:, :, 2] == 1.0, axis=1)
-    # boundary loop of the top square, in the faces' orientation
-    nxt = {}
-    directed = {(a, b) for face in f[top] for a, b in zip(face, np.roll(face, -1))}
-    for a, b in directed:
-        if (b, a) not in directed:
-            nxt[a] = b
-    loop = [next(iter(nxt))]
-    while len(loop) < 4:
-        loop.append(nxt[loop[-1]])
-    x = len(v)
-    vv = np.vstack([v, [[0.3, 1.0 - 1e-9, 1.0]]])
-    fan = [(loop[i], loop[(i + 1) % 4], x) for i in range(4)]
-    return vv, np.vstack([f[~top], np.array(fan)])
-
-
-CAGES = {
-    "box1": box_cage(1),
-    "box3": box_cage(3),
-    "ico1": icosphere_cage(1),
-    "star": star_cage(0),
-    "flat-box": box_cage(2, half_extent=(3.0, 1.0, 0.05)),
-    "sliver": sliver_cage(),
-}
 
 
 def lin_err(w, v, p):

@@ -7,8 +7,7 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from builders import diag  # noqa: E402
-from test_mvc import CAGES  # noqa: E402
+from builders import CAGES, diag  # noqa: E402
 
 from cagekit.cage.shapes import box_cage  # noqa: E402
 from cagekit.coords import bind  # noqa: E402
