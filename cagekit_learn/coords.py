@@ -358,17 +358,22 @@ def compiled_kernels(enabled: bool) -> Iterator[None]:
         _KERNELS[0] = before
 
 
-def kernels_enabled() -> bool:
-    """Whether CPU tensors use compiled code (this module's MVC kernels, libigl in
-    :func:`cagekit_learn.enclosure.enclosure_loss`); see :func:`compiled_kernels`.
+def kernels_enabled(device: torch.device) -> bool:
+    """Whether tensors on ``device`` use compiled code: on the CPU, unless
+    :func:`compiled_kernels` ``(False)`` is in force (this module's MVC kernels, libigl in
+    :func:`cagekit_learn.enclosure.enclosure_loss`, k-d trees in
+    :func:`cagekit_learn.losses.chamfer_loss`).
 
     Examples
     --------
+    >>> cpu = torch.device("cpu")
+    >>> kernels_enabled(cpu), kernels_enabled(torch.device("cuda"))
+    (True, False)
     >>> with compiled_kernels(False):
-    ...     kernels_enabled()
+    ...     kernels_enabled(cpu)
     False
     """
-    return _KERNELS[0]
+    return device.type == "cpu" and _KERNELS[0]
 
 
 class _KernelMVC(torch.autograd.Function):
@@ -544,7 +549,7 @@ def _weights_and_faces(points, cage_v, cage_f, snap, chunk_size):
 
     if n == 0:
         out = Pc.new_zeros((B, 0, k))
-    elif device.type == "cpu" and kernels_enabled():
+    elif kernels_enabled(device):
         out = _blend_far_rows(Pc, Vc, faces_np,
                               _kernel_weights(Pc, Vc, nrm, off, snap_d, snap, cst, chunk_size))
     else:

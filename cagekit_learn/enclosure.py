@@ -205,7 +205,7 @@ def enclosure_loss(P: torch.Tensor, V: torch.Tensor, F: torch.Tensor | ArrayLike
     T = _triangles(V, F)
     _check_points(P, T.shape[0])
     with torch.no_grad():
-        if V.device.type == "cpu" and kernels_enabled():
+        if kernels_enabled(V.device):
             inside, nearest = _side_and_nearest_igl(P, V, F)
         else:
             inside = winding_numbers(P, V, F) >= 0.5

@@ -95,7 +95,7 @@ def _nearest(P: torch.Tensor, Q: torch.Tensor, max_elements: int):
     """Nearest ``Q`` point of each ``P`` point (B, s) and nearest ``P`` point of each ``Q``
     point (B, t), from one pass over chunks of ``P``'s rows."""
     P, Q = P.detach(), Q.detach()
-    if P.device.type == "cpu" and kernels_enabled():
+    if kernels_enabled(P.device):
         return _nearest_kdtree(P, Q)
     B, s, t = P.shape[0], P.shape[1], Q.shape[1]
     to_q = torch.empty((B, s), dtype=torch.long, device=P.device)
@@ -124,20 +124,17 @@ def _nearest_kdtree(P: torch.Tensor, Q: torch.Tensor) -> tuple[torch.Tensor, tor
 
 
 def _knn_kdtree(X: torch.Tensor, k: int) -> torch.Tensor:
-    """:func:`knn_neighborhoods` of CPU tensors by scipy's k-d trees, the point itself first
-    (moved there when coincident points came before it, added when they took every slot)."""
-    from scipy.spatial import cKDTree
+    """:func:`knn_neighborhoods` of CPU tensors by the core's k-d tree search
+    (:func:`cagekit.geometry.vertex_neighborhoods`), each point moved to the front of its
+    own neighbourhood (coincident points may come before it)."""
+    from cagekit.geometry import vertex_neighborhoods
 
     x = X.numpy()
-    B, n = x.shape[:2]
-    out = np.empty((B, n, k), dtype=np.int64)
-    own = np.arange(n)
-    for b in range(B):
-        index = np.asarray(cKDTree(x[b]).query(x[b], k=k)[1]).reshape(n, k)
-        for i in np.nonzero(index[:, 0] != own)[0]:
-            others = index[i][index[i] != i]
-            index[i] = np.concatenate(([i], others))[:k]
-        out[b] = index
+    out = np.stack([vertex_neighborhoods(x[b], None, k=k).index for b in range(len(x))])
+    own = np.arange(x.shape[1])
+    for b, i in zip(*np.nonzero(out[:, :, 0] != own)):
+        row = out[b, i]
+        out[b, i] = np.concatenate(([i], row[row != i]))
     return torch.from_numpy(out)
 
 
@@ -345,7 +342,7 @@ def knn_neighborhoods(X: torch.Tensor, k: int = 16, *,
     X = X.detach()
     B, n = X.shape[:2]
     k = min(int(k), n)
-    if X.device.type == "cpu" and kernels_enabled():
+    if kernels_enabled(X.device):
         return _knn_kdtree(X, k)
     out = torch.empty((B, n, k), dtype=torch.long, device=X.device)
     rows = _rows(B, n, max_elements)

@@ -46,7 +46,7 @@ from cagekit.io.files import atomic_output
 from cagekit_learn.checkpoint import load_checkpoint, save_checkpoint
 from cagekit_learn.coords import compiled_kernels
 from cagekit_learn.shipped import MODELS_DIR
-from cagekit_learn.train import TrainConfig, load_model, train
+from cagekit_learn.train import TrainConfig, TrainResult, load_model, train
 
 __all__ = ["RECIPES", "FINGERPRINT_STEPS", "training_shapes", "training_folder",
            "amplified_shapes", "config_of", "weights_sha256", "machine", "first_steps",
@@ -175,6 +175,13 @@ def machine() -> dict:
             "cpu": llvmlite.binding.get_host_cpu_name()}
 
 
+def _reference_train(config: TrainConfig, progress: bool) -> TrainResult:
+    """:func:`~cagekit_learn.train.train` through the reference torch graph (see the
+    module), as both the fingerprint and the shipped run train."""
+    with compiled_kernels(False):
+        return train(config, progress=progress)
+
+
 def first_steps(name: str, data: str | os.PathLike, run_dir: str | os.PathLike) -> dict:
     """Train :data:`FINGERPRINT_STEPS` steps of the recipe; the weights' hash and losses.
 
@@ -184,8 +191,7 @@ def first_steps(name: str, data: str | os.PathLike, run_dir: str | os.PathLike) 
         ``steps``, ``weights_sha256``, ``losses`` (the last step's terms) and
         :func:`machine`.
     """
-    with compiled_kernels(False):  # the reference graph: see the module
-        result = train(config_of(name, data, run_dir, FINGERPRINT_STEPS), progress=False)
+    result = _reference_train(config_of(name, data, run_dir, FINGERPRINT_STEPS), False)
     return {"steps": result.step, "weights_sha256": weights_sha256(result.model.state_dict()),
             "losses": {k: float(v) for k, v in result.last_losses.items()}, **machine()}
 
@@ -225,8 +231,7 @@ def make_model(name: str, run_dir: str | os.PathLike, steps: int | None = None,
     variations = (amplified_shapes(data, run_dir / "amplified", recipe["amplify"],
                                    recipe["seed"]) if recipe.get("amplify") else [])
     fingerprint = first_steps(name, data, run_dir / "first_steps")
-    with compiled_kernels(False):  # the reference graph: see the module
-        result = train(config_of(name, data, run_dir / "run", steps), progress=True)
+    result = _reference_train(config_of(name, data, run_dir / "run", steps), True)
     payload = load_checkpoint(run_dir / "run")
     exported = {k: payload[k] for k in ("model", "model_config", "config", "step", "epoch",
                                         "skipped")}
