@@ -823,17 +823,36 @@ _INTERRUPT_POLL = 0.1
 
 def _stop_pool(pool: cf.ProcessPoolExecutor) -> None:
     """Stop a :func:`process_pool` now: queued items cancelled, its processes ended (the
-    items they run are dropped), without waiting for them to finish."""
+    items they run are dropped), without waiting for them to finish.
+
+    A worker ended while it writes a large result (more than a pipe holds) leaves the
+    pool's manager thread waiting for the rest of that message in ``recv``, and Python
+    joins that thread at exit, so the process would never end. The parent still holds the
+    write end of the result pipe, so no end-of-file ever comes; closing it once the
+    workers are gone gives ``recv`` its end-of-file and the thread ends. It is waited for
+    here, so that it is not still closing its pipes when Python's exit hook writes to one
+    (Python 3.11 then prints an ignored ``Bad file descriptor`` at exit).
+    """
     terminate = getattr(pool, "terminate_workers", None)  # Python 3.14
     if terminate is not None:
         terminate()
         return
     processes = list((getattr(pool, "_processes", None) or {}).values())
+    results = getattr(pool, "_result_queue", None)  # shutdown() forgets both
+    manager = getattr(pool, "_executor_manager_thread", None)
     pool.shutdown(wait=False, cancel_futures=True)
     for process in processes:
         process.terminate()
     for process in processes:
         process.join(5)
+        if process.is_alive():
+            process.kill()
+            process.join(5)
+    writer = getattr(results, "_writer", None)
+    if writer is not None:
+        writer.close()
+    if manager is not None:
+        manager.join(10)
 
 
 def usable_cores() -> int:
