@@ -12,7 +12,7 @@ from numpy.typing import ArrayLike
 from cagekit.cage import cage_encloses, check_cage, distance_in_diagonals, winding_numbers
 from cagekit.cage.placement import placement_hint
 from cagekit.coords.green import FaceTerms, green_coordinates
-from cagekit.coords.mvc import FAR_BLEND, mean_value_coordinates
+from cagekit.coords.mvc import FAR_BLEND, mean_value_coordinates, mvc_and_winding
 from cagekit.errors import InputError, OutsideCageError, OutsideCageWarning
 from cagekit.typed import Faces, Floats, Vertices
 
@@ -56,13 +56,18 @@ class CageBinding:
     method : str
         ``"mvc"``: what :func:`bind` returns for it (Green coordinates give a
         :class:`GreenBinding`).
+    winding : (n,) float64 or None
+        The cage's winding number at each point when :func:`bind` was asked for it
+        (``winding=True``), else None.
     """
 
-    def __init__(self, weights: Floats, cage_v: Vertices, cage_f: Faces, method: str) -> None:
+    def __init__(self, weights: Floats, cage_v: Vertices, cage_f: Faces, method: str,
+                 winding: Floats | None = None) -> None:
         self.weights = weights
         self.cage_v = cage_v
         self.cage_f = cage_f
         self.method = method
+        self.winding = winding
 
     @property
     def n_points(self) -> int:
@@ -116,13 +121,17 @@ class GreenBinding:
         Its faces, oriented outward.
     method : str
         ``"green"``.
+    winding : (n,) float64 or None
+        As :attr:`CageBinding.winding`.
     """
 
-    def __init__(self, phi: Floats, psi: Floats, cage_v: Vertices, cage_f: Faces) -> None:
+    def __init__(self, phi: Floats, psi: Floats, cage_v: Vertices, cage_f: Faces,
+                 winding: Floats | None = None) -> None:
 
         self.phi, self.psi = phi, psi
         self.cage_v, self.cage_f = cage_v, cage_f
         self.method = "green"
+        self.winding = winding
         self._face_terms = FaceTerms(cage_v, cage_f)
 
     @property
@@ -188,17 +197,19 @@ def _checked_cage(new_cage_v, shape) -> np.ndarray:
 
 @overload
 def bind(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike,
-         method: Literal["mvc"] = "mvc", *, check: bool = True) -> CageBinding: ...
+         method: Literal["mvc"] = "mvc", *, check: bool = True,
+         winding: bool = False) -> CageBinding: ...
 @overload
 def bind(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike,
-         method: Literal["green"], *, check: bool = True) -> GreenBinding: ...
+         method: Literal["green"], *, check: bool = True,
+         winding: bool = False) -> GreenBinding: ...
 @overload
 def bind(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike, method: str = "mvc", *,
-         check: bool = True) -> CageBinding | GreenBinding: ...
+         check: bool = True, winding: bool = False) -> CageBinding | GreenBinding: ...
 
 
 def bind(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike, method: str = "mvc", *,
-         check: bool = True) -> CageBinding | GreenBinding:
+         check: bool = True, winding: bool = False) -> CageBinding | GreenBinding:
     """Compute the coordinates of points with respect to a cage.
 
     Parameters
@@ -224,6 +235,11 @@ def bind(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike, method: str = 
         faces). False skips it, for speed, when the cage is known to be free of it (a
         cage from :func:`cagekit.fit_cage`) or folds on purpose; the checks MVC itself
         needs (closed, 2-manifold, oriented) always run.
+    winding : bool, default False
+        Also keep the cage's winding number at each point (``binding.winding``, for
+        :func:`warn_outside`). MVC computes it in the same pass
+        (:func:`cagekit.coords.mvc.mvc_and_winding`: about a tenth more time, where libigl's
+        separate pass costs about half the binding's); Green coordinates ask libigl.
 
     Returns
     -------
@@ -247,15 +263,18 @@ def bind(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike, method: str = 
     v = np.ascontiguousarray(cage_v, dtype=np.float64)
     faces = check_cage(v, cage_f, intersections=check)
     if method == "green":
-
-        return GreenBinding(*green_coordinates(points, v, faces), v, faces)
-    weights = mean_value_coordinates(points, v, faces, check=False)
-    return CageBinding(weights, v, faces, method)
+        phi, psi = green_coordinates(points, v, faces)
+        return GreenBinding(phi, psi, v, faces,
+                            winding_numbers(points, v, faces) if winding else None)
+    if winding:
+        weights, wn = mvc_and_winding(points, v, faces, check=False)
+        return CageBinding(weights, v, faces, method, wn)
+    return CageBinding(mean_value_coordinates(points, v, faces, check=False), v, faces, method)
 
 
 def warn_outside(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike, *,
                  shape: str = "the shape", cage: str = "the cage",
-                 refuse_above: float = 1.0) -> float:
+                 refuse_above: float = 1.0, winding: ArrayLike | None = None) -> float:
     """Warn when points lie outside their cage, with the share outside and its likely cause.
 
     Every command that binds a shape calls it, so they all warn alike. Points outside a
@@ -277,6 +296,9 @@ def warn_outside(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike, *,
         Share of points outside above which :class:`~cagekit.errors.OutsideCageError` is
         raised instead of the warning (the command line refuses more than half, see
         ``--allow-outside``); 1 never refuses.
+    winding : (n,) array_like of float, optional
+        The cage's winding numbers at the points when known already (``bind(...,
+        winding=True).winding``); computed by libigl otherwise.
 
     Returns
     -------
@@ -302,7 +324,12 @@ the shape is 9x the size of the cage: different units (the shape in mm, the cage
     """
 
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    outside = winding_numbers(points, cage_v, cage_f) < 0.5 - 1e-9
+    if winding is None:
+        winding = winding_numbers(points, cage_v, cage_f)
+    elif np.shape(winding) != (len(points),):
+        raise InputError(f"winding numbers of shape {np.shape(winding)} for {len(points)} "
+                         "points")
+    outside = np.asarray(winding) < 0.5 - 1e-9
     count = int(outside.sum())
     if not count:
         return 0.0

@@ -23,18 +23,21 @@ docs/architecture.md.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
-from cagekit.cage import cage_topology, check_cage, distance_in_diagonals
-from cagekit.coords.fastangle import half_angle_over_sin
+from cagekit.cage import cage_topology, check_cage, distance_in_diagonals, winding_numbers
+from cagekit.coords.fastangle import angle_from_sin_cos, half_angle_over_sin
 from cagekit.coords.lanes import cross, load_lanes
 from cagekit.errors import InputError
 from cagekit.geometry.frame import bounding_box_diagonal
 from cagekit.typed import Floats
 
-__all__ = ["mean_value_coordinates", "affine_extension_weights", "affine_extension_matrix",
+__all__ = ["mean_value_coordinates", "mvc_and_winding", "WeightsAndWinding",
+           "affine_extension_weights", "affine_extension_matrix",
            "closest_point_weights", "DEFAULT_SNAP", "FAR_BLEND"]
 
 DEFAULT_SNAP = 1e-13
@@ -155,7 +158,7 @@ _LANES = 16
 
 @numba.njit(cache=True, error_model="numpy", fastmath={"contract"})
 def _mvc_lanes(P, cage_v, faces, edges, face_edges, face_signs, face_n, face_off, snap,
-               in_plane_value, U, inv_d, G, X, lam, acc):
+               in_plane_value, U, inv_d, G, X, lam, acc, want_winding, cosines, winding):
     """Unnormalised MVC of ``_LANES`` points at once, for the points off the cage.
 
     The loops run over lanes (points) innermost, with no branches, so that LLVM vectorises
@@ -176,6 +179,15 @@ def _mvc_lanes(P, cage_v, faces, edges, face_edges, face_signs, face_n, face_off
         Scratch.
     acc : (k, L) float64
         Receives the unnormalised weights ``w_j`` of each lane.
+    want_winding : bool
+        Also sum each lane's solid angles into ``winding``.
+    cosines : (e, L) float64
+        Scratch (used when ``want_winding``).
+    winding : (L,) float64
+        Receives each lane's winding number when ``want_winding``: the faces' signed solid
+        angles over ``4 pi`` (Van Oosterom and Strackee's ``tan(Omega / 2) = det / (1 +
+        u_a.u_b + u_b.u_c + u_c.u_a)``, from the unit vectors and triple product the
+        weights already need).
     """
     k = cage_v.shape[0]
     for j in range(k):
@@ -203,6 +215,7 @@ def _mvc_lanes(P, cage_v, faces, edges, face_edges, face_signs, face_n, face_off
             s = np.sqrt(cx * cx + cy * cy + cz * cz)
             c = uax * ubx + uay * uby + uaz * ubz
             g = half_angle_over_sin(s, c)
+            cosines[e, lane] = c
             X[0, e, lane] = cx
             X[1, e, lane] = cy
             X[2, e, lane] = cz
@@ -210,6 +223,8 @@ def _mvc_lanes(P, cage_v, faces, edges, face_edges, face_signs, face_n, face_off
             G[1, e, lane] = g * cy
             G[2, e, lane] = g * cz
     # Face terms: mean vector, Cramer's rule; lam[:, f] = lambda / d of the face's vertices.
+    for lane in range(_LANES):
+        winding[lane] = 0.0
     for f in range(faces.shape[0]):
         ia = faces[f, 0]
         ib = faces[f, 1]
@@ -241,6 +256,16 @@ def _mvc_lanes(P, cage_v, faces, edges, face_edges, face_signs, face_n, face_off
                                       + mz * X[2, e_ca, lane]) * inv * inv_d[ib, lane]
             lam[2, f, lane] = s_ab * (mx * X[0, e_ab, lane] + my * X[1, e_ab, lane]
                                       + mz * X[2, e_ab, lane]) * inv * inv_d[ic, lane]
+        if want_winding:
+            for lane in range(_LANES):
+                det = (U[0, ia, lane] * X[0, e_bc, lane] + U[1, ia, lane] * X[1, e_bc, lane]
+                       + U[2, ia, lane] * X[2, e_bc, lane]) * s_bc
+                den = 1.0 + cosines[e_ab, lane] + cosines[e_bc, lane] + cosines[e_ca, lane]
+                half = angle_from_sin_cos(abs(det), den)
+                winding[lane] += half if det >= 0.0 else -half
+    if want_winding:
+        for lane in range(_LANES):
+            winding[lane] *= 1.0 / (2.0 * np.pi)  # sum of Omega / (4 pi), Omega = 2 half
     for j in range(k):
         for lane in range(_LANES):
             acc[j, lane] = 0.0
@@ -276,8 +301,10 @@ def _normalise_row(row):
 
 @numba.njit(parallel=True, cache=True, error_model="numpy")
 def _mvc_kernel(points, cage_v, faces, edges, face_edges, face_signs, face_n, face_off, snap,
-                n_chunks, out):
-    """MVC of all points into ``out`` (n, k), ``_LANES`` points at a time, chunks in parallel.
+                n_chunks, out, want_winding, winding):
+    """MVC of all points into ``out`` (n, k), ``_LANES`` points at a time, chunks in parallel,
+    and, when ``want_winding``, their winding numbers into ``winding`` (n,): 0.5 for a point
+    on the cage (within ``snap`` of it).
 
     A point whose first-pass weights are not finite (poisoned: it lies within ``snap`` of
     some face's plane) or whose weight sum cannot be resolved is looked at again, alone:
@@ -302,19 +329,25 @@ def _mvc_kernel(points, cage_v, faces, edges, face_edges, face_signs, face_n, fa
         acc = np.empty((k, L))
         P1 = np.empty((3, L))
         acc1 = np.empty((k, L))
+        cosines = np.empty((e, L))
+        wind = np.empty(L)
         for blk in range(chunk * n_blocks // n_chunks, (chunk + 1) * n_blocks // n_chunks):
             start = blk * L
             stop = min(start + L, n)
             load_lanes(points, start, P)
             _mvc_lanes(P, cage_v, faces, edges, face_edges, face_signs, face_n, face_off,
-                       snap, np.nan, U, inv_d, G, X, lam, acc)
+                       snap, np.nan, U, inv_d, G, X, lam, acc, want_winding, cosines, wind)
             for i in range(start, stop):
+                if want_winding:
+                    winding[i] = wind[i - start]
                 row = out[i]
                 for j in range(k):
                     row[j] = acc[j, i - start]
                 if _normalise_row(row):
                     continue
                 if _snap_weights(points[i], cage_v, faces, edges, face_n, face_off, snap, row):
+                    if want_winding:
+                        winding[i] = 0.5
                     continue
                 # alone in its own lane block (acc still holds the block's other points)
                 for lane in range(L):
@@ -322,7 +355,7 @@ def _mvc_kernel(points, cage_v, faces, edges, face_edges, face_signs, face_n, fa
                     P1[1, lane] = points[i, 1]
                     P1[2, lane] = points[i, 2]
                 _mvc_lanes(P1, cage_v, faces, edges, face_edges, face_signs, face_n, face_off,
-                           snap, 0.0, U, inv_d, G, X, lam, acc1)
+                           snap, 0.0, U, inv_d, G, X, lam, acc1, False, cosines, wind)
                 for j in range(k):
                     row[j] = acc1[j, 0]
                 if not _normalise_row(row):
@@ -361,7 +394,51 @@ def mean_value_coordinates(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLi
     >>> bool(np.allclose(w.sum(axis=1), 1.0)), bool(np.allclose(w @ v, [[0.1, 0.2, -0.3]]))
     (True, True)
     """
+    return _coordinates(points, cage_v, cage_f, snap, check, False).weights
 
+
+class WeightsAndWinding(NamedTuple):
+    """What :func:`mvc_and_winding` returns."""
+
+    #: (n, k) float64: the mean value coordinates, as :func:`mean_value_coordinates`
+    weights: Floats
+    #: (n,) float64: each point's winding number: about 1 inside, 0 outside, 0.5 on the cage
+    winding: Floats
+
+
+def mvc_and_winding(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike,
+                    snap: float = DEFAULT_SNAP, check: bool = True) -> WeightsAndWinding:
+    """Mean value coordinates and the cage's winding number at each point, in one pass.
+
+    The winding number is the sum of the faces' signed solid angles over ``4 pi``; the
+    kernel already has the unit vectors and triple products it needs. It agrees with
+    :func:`cagekit.winding_numbers` (libigl) to about 1e-12 off the cage; points within
+    ``snap`` of the cage get 0.5 (on it: libigl gives a vertex its solid angle's share
+    instead), points beyond :data:`FAR_BLEND` ``[0]`` diagonals 0.
+
+    Parameters
+    ----------
+    points, cage_v, cage_f, snap, check
+        As :func:`mean_value_coordinates`.
+
+    Returns
+    -------
+    WeightsAndWinding
+        ``weights`` (n, k) and ``winding`` (n,), float64.
+
+    Examples
+    --------
+    >>> from cagekit.cage.shapes import box_cage
+    >>> v, f = box_cage()
+    >>> result = mvc_and_winding([[0.1, 0.2, -0.3], [3.0, 0.0, 0.0]], v, f)
+    >>> result.weights.shape, result.winding.round(9).tolist()
+    ((2, 8), [1.0, 0.0])
+    """
+    return _coordinates(points, cage_v, cage_f, snap, check, True)
+
+
+def _coordinates(points, cage_v, cage_f, snap, check, want_winding) -> WeightsAndWinding:
+    """:func:`mvc_and_winding`; the winding numbers are an empty array unless wanted."""
     cage_v = np.asarray(cage_v, dtype=np.float64)
     faces = check_cage(cage_v, cage_f) if check else np.asarray(cage_f, dtype=np.int64)
     pts = np.asarray(points, dtype=np.float64)
@@ -384,13 +461,19 @@ def mean_value_coordinates(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLi
     normals = np.divide(normals, norms, out=np.zeros_like(normals), where=norms > 0)
     n, k = len(px), len(cv)
     out = np.empty((n, k), dtype=np.float64)
+    winding = np.zeros(n if want_winding else 0)
     face_off = np.einsum("ij,ij->i", cv[faces[:, 0]], normals)
     if n:
         _mvc_kernel(px, cv, np.ascontiguousarray(faces), topo.edges, topo.face_edges,
                     topo.face_edge_signs, normals, face_off, snap,
-                    64 * numba.get_num_threads(), out)
-        _blend_far_rows(px, cv, faces, out)
-    return out
+                    64 * numba.get_num_threads(), out, want_winding, winding)
+        far = _blend_far_rows(px, cv, faces, out)
+        if want_winding:
+            winding[far] = 0.0  # far outside; solid angles there are rounding
+            lost = np.flatnonzero(~np.isfinite(winding))  # none known; libigl's if any
+            if len(lost):
+                winding[lost] = winding_numbers(px[lost], cv, faces)
+    return WeightsAndWinding(out, winding)
 
 
 #: far rows blended at a time: the blend's scratch memory stays a few (chunk, k) arrays
@@ -398,12 +481,13 @@ _FAR_CHUNK = 4096
 
 
 def _blend_far_rows(px, cv, faces, out):
-    """Rows of points beyond ``FAR_BLEND[0]`` diagonals: blend into the affine extension."""
+    """Rows of points beyond ``FAR_BLEND[0]`` diagonals: blend into the affine extension.
+    Returns those rows' indices."""
 
     r = distance_in_diagonals(px, cv)  # px and cv are both centred on the cage's box
     far = np.flatnonzero(~(r <= FAR_BLEND[0]))
     if not len(far):
-        return
+        return far
     lo, hi = FAR_BLEND
     centre, diag, M = affine_extension_matrix(cv, faces)
     for start in range(0, len(far), _FAR_CHUNK):
@@ -418,6 +502,7 @@ def _blend_far_rows(px, cv, faces, out):
                              "far from the cage (about 1e300 cage diagonals or more) that "
                              "their coordinates overflow float64")
         out[rows] = block
+    return far
 
 
 def _homogeneous(q):

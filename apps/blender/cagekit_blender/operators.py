@@ -121,10 +121,12 @@ class CAGEKIT_OT_bind(jobs.Job, bpy.types.Operator):
         out = []
         for i, (name, V) in enumerate(shapes):
             progress(i, len(shapes), name)
-            binding = bind(V, cage_v, cage_f, method=self.coords, check=False)  # gather did
+            # gather checked the cage; MVC gives the winding numbers in the same pass
+            binding = bind(V, cage_v, cage_f, method=self.coords, check=False, winding=True)
             with warnings.catch_warnings(record=True) as caught:  # as the commands warn
                 warnings.simplefilter("always")
-                warn_outside(V, cage_v, cage_f, shape=name, cage=cage_name)
+                warn_outside(V, cage_v, cage_f, shape=name, cage=cage_name,
+                             winding=binding.winding)
             out.append((name, binding, [str(w.message) for w in caught]))
         return cage_name, out
 
