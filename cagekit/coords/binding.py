@@ -11,7 +11,7 @@ from numpy.typing import ArrayLike
 
 from cagekit.cage import cage_encloses, check_cage, distance_in_diagonals, winding_numbers
 from cagekit.cage.placement import placement_hint
-from cagekit.coords.green import FaceTerms, green_coordinates
+from cagekit.coords.green import FaceTerms, green_coordinates_and_plan
 from cagekit.coords.mvc import FAR_BLEND, mean_value_coordinates, mvc_and_winding
 from cagekit.errors import InputError, OutsideCageError, OutsideCageWarning
 from cagekit.typed import Faces, Floats, Vertices
@@ -239,7 +239,8 @@ def bind(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike, method: str = 
         Also keep the cage's winding number at each point (``binding.winding``, for
         :func:`warn_outside`). MVC computes it in the same pass
         (:func:`cagekit.coords.mvc.mvc_and_winding`: about a tenth more time, where libigl's
-        separate pass costs about half the binding's); Green coordinates ask libigl.
+        separate pass costs about half the binding's); Green coordinates have it anyway
+        (:attr:`cagekit.coords.green.EvaluationPlan.winding`).
 
     Returns
     -------
@@ -263,9 +264,8 @@ def bind(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike, method: str = 
     v = np.ascontiguousarray(cage_v, dtype=np.float64)
     faces = check_cage(v, cage_f, intersections=check)
     if method == "green":
-        phi, psi = green_coordinates(points, v, faces)
-        return GreenBinding(phi, psi, v, faces,
-                            winding_numbers(points, v, faces) if winding else None)
+        phi, psi, plan = green_coordinates_and_plan(points, v, faces)
+        return GreenBinding(phi, psi, v, faces, plan.winding if winding else None)
     if winding:
         weights, wn = mvc_and_winding(points, v, faces, check=False)
         return CageBinding(weights, v, faces, method, wn)

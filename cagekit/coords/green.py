@@ -63,8 +63,8 @@ from cagekit.errors import InputError
 from cagekit.geometry.frame import bounding_box_diagonal
 from cagekit.typed import Floats, Ints, Vertices
 
-__all__ = ["green_coordinates", "evaluation_plan", "EvaluationPlan", "FaceTerms", "stretch_factors",
-           "unit_normals", "SNAP", "INSET"]
+__all__ = ["green_coordinates", "green_coordinates_and_plan", "evaluation_plan",
+           "EvaluationPlan", "FaceTerms", "stretch_factors", "unit_normals", "SNAP", "INSET"]
 
 #: points closer than this to the cage (in cage diagonals) are evaluated INSET from it
 SNAP = 3e-11
@@ -399,7 +399,7 @@ def green_coordinates(points: ArrayLike, cage_v: ArrayLike,
     >>> bool(np.allclose(phi @ v + psi @ n, [[0.1, 0.2, -0.3]])), round(float(phi.sum()), 12)
     (True, 1.0)
     """
-    phi, psi, _ = _coordinates_and_plan(points, cage_v, cage_f)
+    phi, psi, _ = green_coordinates_and_plan(points, cage_v, cage_f)
     return phi, psi
 
 
@@ -416,21 +416,49 @@ class EvaluationPlan:
         The points outside the cage, extended across ...
     exit_faces : (p,) int64
         ... these faces.
+    winding : (n,) float64
+        The cage's winding number where each point was evaluated: the sum of its vertex
+        coordinates before the extension (the faces' solid angles over ``4 pi``). A point
+        within :data:`SNAP` of the cage has the value of its evaluation point, about 1
+        (inside) for a point on the cage.
     """
 
     evaluated: Vertices
     outside_rows: Ints
     exit_faces: Ints
+    winding: Floats
 
 
 def evaluation_plan(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike) -> EvaluationPlan:
     """The :class:`EvaluationPlan` of :func:`green_coordinates` for these points (the
     torch twin, ``cagekit_learn.green``, evaluates and extends where the core does)."""
-    return _coordinates_and_plan(points, cage_v, cage_f)[2]
+    return green_coordinates_and_plan(points, cage_v, cage_f)[2]
 
 
-def _coordinates_and_plan(points, cage_v, cage_f):
-    """:func:`green_coordinates` and its :class:`EvaluationPlan`."""
+def green_coordinates_and_plan(points: ArrayLike, cage_v: ArrayLike,
+                               cage_f: ArrayLike) -> tuple[Floats, Floats, EvaluationPlan]:
+    """:func:`green_coordinates` and its :class:`EvaluationPlan` (which holds the cage's
+    winding numbers at the points, found on the way).
+
+    Parameters
+    ----------
+    points, cage_v, cage_f
+        As :func:`green_coordinates`.
+
+    Returns
+    -------
+    phi : (n, k) float64
+    psi : (n, m) float64
+    plan : EvaluationPlan
+
+    Examples
+    --------
+    >>> from cagekit.cage.shapes import box_cage
+    >>> v, f = box_cage()
+    >>> phi, psi, plan = green_coordinates_and_plan([[0.1, 0.2, -0.3], [3.0, 0, 0]], v, f)
+    >>> plan.winding.round(9).tolist(), plan.outside_rows.tolist()
+    ([1.0, 0.0], [1])
+    """
 
     pts = np.asarray(points, dtype=np.float64)
     if pts.ndim != 2 or pts.shape[1] != 3:
@@ -454,12 +482,12 @@ def _coordinates_and_plan(points, cage_v, cage_f):
     evaluated = px.copy()
     no_rows = np.zeros(0, dtype=np.int64)
     if not n:
-        return phi, psi, EvaluationPlan(pts.copy(), no_rows, no_rows)
+        return phi, psi, EvaluationPlan(pts.copy(), no_rows, no_rows, np.zeros(0))
     dist = np.empty(n)
     _green_kernel(px, cv, faces, *constants[:3], normals, *constants[3:], chunks, phi, psi,
                   dist)
     # the solid angles sum to 4 pi inside and to 0 outside (the kernel's own winding number)
-    outside = phi.sum(axis=1) < 0.5
+    winding = phi.sum(axis=1)
     near = np.flatnonzero(~(dist >= SNAP))  # too close, or not finite (dist -1)
     if len(near):
         query = np.ascontiguousarray(_moved_off(px[near], cv, faces))
@@ -472,14 +500,14 @@ def _coordinates_and_plan(points, cage_v, cage_f):
             raise FloatingPointError("Green coordinates are not finite at "
                                      f"{int((dist_near < 0).sum())} point(s)")
         phi[near], psi[near] = phi_near, psi_near
-        outside[near] = phi_near.sum(axis=1) < 0.5
-    rows, exit_faces = np.flatnonzero(outside), no_rows
+        winding[near] = phi_near.sum(axis=1)
+    rows, exit_faces = np.flatnonzero(winding < 0.5), no_rows
     if len(rows):
         exit_faces = _exit_faces(evaluated[rows], cv, faces, twice)
         _extend_outside(evaluated[rows], exit_faces, cv, faces, normals, rows, phi, psi)
     psi *= diag
     plan = EvaluationPlan(np.where(evaluated == px, pts, evaluated * diag + centre), rows,
-                          exit_faces)
+                          exit_faces, winding)
     return phi, psi, plan
 
 

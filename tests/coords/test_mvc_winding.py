@@ -76,3 +76,13 @@ def test_warn_outside_with_known_winding_numbers_warns_as_without():
     assert messages[0] == messages[1] and messages[0][0] > 0
     with pytest.raises(InputError, match="winding numbers of shape"):
         warn_outside(p, v, f, winding=np.zeros(3))
+
+
+def test_green_on_the_cage_counts_as_inside():
+    v, f = CAGES["star"]
+    on = np.vstack([v[:5], v[f[:5]].mean(axis=1)])
+    winding = bind(on, v, f, method="green", winding=True).winding
+    assert np.all(winding > 0.5)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert warn_outside(on, v, f, winding=winding) == 0.0
