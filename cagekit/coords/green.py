@@ -459,6 +459,11 @@ def green_coordinates_and_plan(points: ArrayLike, cage_v: ArrayLike,
     >>> plan.winding.round(9).tolist(), plan.outside_rows.tolist()
     ([1.0, 0.0], [1])
     """
+    return _coordinates_and_plan(points, cage_v, cage_f)
+
+
+def _coordinates_and_plan(points, cage_v, cage_f):
+    """:func:`green_coordinates_and_plan` (the numba kernels' calls left untyped)."""
 
     pts = np.asarray(points, dtype=np.float64)
     if pts.ndim != 2 or pts.shape[1] != 3:
