@@ -215,7 +215,8 @@ def _mvc_lanes(P, cage_v, faces, edges, face_edges, face_signs, face_n, face_off
             s = np.sqrt(cx * cx + cy * cy + cz * cz)
             c = uax * ubx + uay * uby + uaz * ubz
             g = half_angle_over_sin(s, c)
-            cosines[e, lane] = c
+            if want_winding:
+                cosines[e, lane] = c
             X[0, e, lane] = cx
             X[1, e, lane] = cy
             X[2, e, lane] = cz
