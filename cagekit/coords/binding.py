@@ -238,8 +238,8 @@ def bind(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike, method: str = 
     winding : bool, default False
         Also keep the cage's winding number at each point (``binding.winding``, for
         :func:`warn_outside`). MVC computes it in the same pass
-        (:func:`cagekit.coords.mvc.mvc_and_winding`: about a tenth more time, where libigl's
-        separate pass costs about half the binding's); Green coordinates have it anyway
+        (:func:`cagekit.coords.mvc.mvc_and_winding`: 3-5% more time, where libigl's
+        separate pass costs half the binding's or more); Green coordinates have it anyway
         (:attr:`cagekit.coords.green.EvaluationPlan.winding`).
 
     Returns
