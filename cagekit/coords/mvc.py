@@ -224,8 +224,9 @@ def _mvc_lanes(P, cage_v, faces, edges, face_edges, face_signs, face_n, face_off
             G[1, e, lane] = g * cy
             G[2, e, lane] = g * cz
     # Face terms: mean vector, Cramer's rule; lam[:, f] = lambda / d of the face's vertices.
-    for lane in range(_LANES):
-        winding[lane] = 0.0
+    if want_winding:
+        for lane in range(_LANES):
+            winding[lane] = 0.0
     for f in range(faces.shape[0]):
         ia = faces[f, 0]
         ib = faces[f, 1]
@@ -257,7 +258,7 @@ def _mvc_lanes(P, cage_v, faces, edges, face_edges, face_signs, face_n, face_off
                                       + mz * X[2, e_ca, lane]) * inv * inv_d[ib, lane]
             lam[2, f, lane] = s_ab * (mx * X[0, e_ab, lane] + my * X[1, e_ab, lane]
                                       + mz * X[2, e_ab, lane]) * inv * inv_d[ic, lane]
-        if want_winding:
+        if want_winding:  # the triple product again: kept out of the weights' lane loop
             for lane in range(_LANES):
                 det = (U[0, ia, lane] * X[0, e_bc, lane] + U[1, ia, lane] * X[1, e_bc, lane]
                        + U[2, ia, lane] * X[2, e_bc, lane]) * s_bc
