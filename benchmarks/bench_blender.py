@@ -63,6 +63,7 @@ from cagekit_blender import live, meshes  # noqa: E402
 
 import cagekit  # noqa: E402
 from cagekit.cage import winding_numbers  # noqa: E402
+from cagekit.io import load_mesh  # noqa: E402
 
 TURN_DEGREES = 30.0
 TURN_AXIS = (1.0, 2.0, 3.0)
@@ -263,13 +264,15 @@ def print_targets(rows) -> None:
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sizes", type=int, nargs="+", default=[10_000, 50_000, 200_000],
+    parser.add_argument("--sizes", type=int, nargs="*", default=[10_000, 50_000, 200_000],
                         help="approximate vertex counts of the mesh")
     parser.add_argument("--precisions", type=int, nargs="+", default=[5, 4],
                         help="Mesh Deform precisions to run (grid depth; default 5)")
     parser.add_argument("--edits", type=int, default=10, help="cage edits timed per method")
     parser.add_argument("--binds", type=int, default=3,
                         help="fresh binds per method; the fastest is reported")
+    parser.add_argument("--mesh", nargs="*", default=[],
+                        help="real mesh files to run too (OBJ, PLY, ...: an artist's chair, say)")
     parser.add_argument("--max-meshdeform-vertices", type=int, default=None,
                         help="skip Mesh Deform on meshes with more vertices than this")
     parser.add_argument("--json", default=None)
@@ -283,12 +286,13 @@ def main(argv=None):
     print(f"# update: median of {args.edits} edits; gain: max mesh / max cage displacement; "
           f"rigid error over the bounding-box diagonal")
     results, skipped = [], []
-    for size in args.sizes:
-        V, F = bumpy_shape(size)
+    cases = [(f"bumpy ellipsoid ~{size:,}", *bumpy_shape(size)) for size in args.sizes]
+    cases += [(os.path.basename(path), *load_mesh(path)) for path in args.mesh]
+    for name, V, F in cases:
         diagonal = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
         t = time.perf_counter()
         cage_v, cage_f, _ = cagekit.fit_cage(V, F, faces=200, seed=0)
-        print(f"\n# {len(V):,} vertices, {len(F):,} faces; cage {len(cage_v)} vertices, "
+        print(f"\n# {name}: {len(V):,} vertices, {len(F):,} faces; cage {len(cage_v)} vertices, "
               f"{len(cage_f)} faces (fit_cage {time.perf_counter() - t:.1f} s)")
         print(f"{'vertices':>9} {'method':<17}{'bind s':>9}{'update ms':>10}{'gain':>7}"
               f"{'rigid max':>11}{'rigid RMS':>11}", flush=True)
