@@ -42,8 +42,17 @@ from cagekit_learn.networks import NeuralCages
 from cagekit_learn.train import load_model
 
 __all__ = ["ModelDeformer", "predict", "predict_fixed_source", "predict_cages",
-           "deform_with_model"]
+           "deform_with_model", "REFINE_CAGE_WEIGHT"]
 
+#: weight of the cage term (the cage Laplacian's change,
+#: :data:`cagekit.deformation.DEFAULT_WEIGHTS` ``"cage"``, 0.3 for a fitted cage) when
+#: ``refine=True`` and the caller sets none: the predicted cage already carries the
+#: network's prior on the deformation, and at 0.3 the refinement stopped 2-7% above
+#: ``cage``'s Chamfer distance with parts much straighter than needed. Chosen on pairs of
+#: the shipped models' *training* seats and tables (0.3, 0.1, 0.03, 0.01, 0: 0.01 is the
+#: largest whose median CD is no worse than ``cage``'s there); docs/benchmarks.md, "The
+#: refinement's cage weight".
+REFINE_CAGE_WEIGHT = 0.01
 
 
 def predict(model: NeuralCages, source_points: ArrayLike,
@@ -194,7 +203,8 @@ def deform_with_model(model: NeuralCages, V_src: ArrayLike, F_src: ArrayLike | N
         ``tolerance``, ``target_kind``); the refinement runs in the unit frames the
         prediction is in (:class:`cagekit.deformation.CageProblem`), with the
         coordinates the model was trained with (``coords``, ``method``, ``faces`` and
-        ``check`` do not apply).
+        ``check`` do not apply). Unless ``weights`` sets ``"cage"`` (or ``reference`` is
+        ``"source"``), the cage term weighs :data:`REFINE_CAGE_WEIGHT`.
     progress : callable, optional
         When refining (or falling back), as :func:`cagekit.deform` calls it.
     fallback : bool, default True
@@ -249,7 +259,8 @@ def deform_with_model(model: NeuralCages, V_src: ArrayLike, F_src: ArrayLike | N
     if refine:  # the per-pair optimisation from the prediction, in the unit frames
         problem = CageProblem.create(
             Vs_n, Fs, Vt_n, Ft, cage_n, cage_f,
-            dataclasses.replace(options, coords=_coords_of(model), seed=seed))
+            dataclasses.replace(options, coords=_coords_of(model), seed=seed,
+                                weights=_refine_weights(options)))
         result.set_solution(problem, solve(
             problem, deformed_n, max_evaluations=options.max_evaluations,
             tolerance=options.tolerance, progress=progress))
@@ -263,6 +274,13 @@ def deform_with_model(model: NeuralCages, V_src: ArrayLike, F_src: ArrayLike | N
         raise FloatingPointError("the model produced NaN or inf positions")
     result.seconds = time.perf_counter() - start
     return result
+
+
+def _refine_weights(options: DeformOptions):
+    """The caller's weights, with the cage term at :data:`REFINE_CAGE_WEIGHT` unless set."""
+    if "cage" in (options.weights or {}) or options.reference != "aligned":
+        return options.weights
+    return {**(options.weights or {}), "cage": REFINE_CAGE_WEIGHT}
 
 
 def _coords_of(model) -> str:

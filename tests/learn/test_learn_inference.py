@@ -285,3 +285,20 @@ def test_a_predicted_cage_that_folds_falls_back_to_a_fitted_cage_with_one_warnin
     np.testing.assert_allclose(result.vertices, expected.vertices, atol=1e-9)
     with pytest.raises(CageError, match="cannot be used: it intersects itself"):
         deform_with_model(model, *src, *tgt, points=256, fallback=False)
+
+
+def test_refine_weighs_the_cage_term_lightly_unless_told(run_dir, pair):
+    from cagekit_learn.inference import REFINE_CAGE_WEIGHT
+
+    model, _ = load_model(run_dir)
+    src, tgt = io.load_shape(pair[0]), io.load_shape(pair[1])
+    light = deform_with_model(model, *src, *tgt, points=256, refine=True,
+                              options=DeformOptions(max_evaluations=10))
+    assert light.weights["cage"] == REFINE_CAGE_WEIGHT
+    told = deform_with_model(model, *src, *tgt, points=256, refine=True,
+                             options=DeformOptions(max_evaluations=10, weights={"cage": 0.3}))
+    assert told.weights["cage"] == 0.3
+    assert not np.allclose(light.vertices, told.vertices)
+    source_ref = deform_with_model(model, *src, *tgt, points=256, refine=True,
+                                   options=DeformOptions(max_evaluations=10, reference="source"))
+    assert source_ref.weights["cage"] == 1.0
