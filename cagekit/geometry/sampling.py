@@ -1,9 +1,13 @@
 """Seeded samples of shapes: the one place points are drawn from a surface or a cloud.
 
 Faces are chosen with probability proportional to their area and a point uniformly inside
-each (``trimesh.sample.sample_surface``, driven by a ``numpy.random.Generator`` made from
-the seed; the global random state is never used). A point cloud stands for itself: its
-points, or a seeded subset of them.
+each, driven by a ``numpy.random.Generator`` made from the seed (the global random state is
+never used). The draws are trimesh's (``trimesh.sample.sample_surface``: the same numbers
+from the generator, in the same order, the same arithmetic), so the points are the ones
+trimesh gives, bit for bit (a test checks it); they are written out here because importing
+trimesh takes 0.3-0.5 s, most of the start-up of a command that samples a surface
+(``cagekit deform``; issue 34). A point cloud stands for itself: its points, or a seeded
+subset of them.
 """
 
 from __future__ import annotations
@@ -24,8 +28,9 @@ def sample_surface(
     """Points standing for a shape: area-uniform samples of a mesh, or a cloud's points.
 
     On a mesh a face is chosen with probability proportional to its area, then a point
-    uniformly inside it (``trimesh.sample.sample_surface``, driven by
-    ``numpy.random.default_rng(seed)``; the global random state is not used). A point
+    uniformly inside it, driven by ``numpy.random.default_rng(seed)`` (the global random
+    state is not used); the points are those of ``trimesh.sample.sample_surface`` with
+    that generator, bit for bit. A point
     cloud (no faces) is not resampled: its points, or a seeded subset of them.
 
     Parameters
@@ -78,16 +83,32 @@ def sample_surface(
     n = as_count(n, "n", 0)
     if not face_areas(V, F).sum() > 0.0:
         raise InputError("cannot sample a surface of zero total area")
-    import trimesh  # 0.5 s to import: only when sampling
-
-    mesh = trimesh.Trimesh(vertices=V, faces=F, process=False, validate=False)
-    points, face_index = trimesh.sample.sample_surface(
-        mesh, n, seed=np.random.default_rng(seed)
-    )
+    points, face_index = _area_uniform(V, F, n, np.random.default_rng(seed))
     points = np.ascontiguousarray(points, dtype=np.float64)
     if return_faces:
         return points, np.asarray(face_index, dtype=np.int64)
     return points
+
+
+def _area_uniform(V: np.ndarray, F: np.ndarray, n: int,
+                  rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` area-uniform points of a mesh and their faces, as trimesh draws them.
+
+    A face by inverting the cumulative areas at ``rng.random(n)`` times the total, then
+    two lengths along its edges from the first vertex, reflected into the triangle when
+    they sum past 1 (Weisstein's triangle point picking). Areas are half the norms of
+    ``(b - a) x (c - b)``, as trimesh computes them, so that the same draws pick the same
+    faces.
+    """
+    a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
+    area = np.sqrt((np.cross(b - a, c - b) ** 2).sum(axis=1)) / 2.0
+    cumulative = np.cumsum(area)
+    face = np.searchsorted(cumulative, rng.random(n) * cumulative[-1])
+    lengths = rng.random((n, 2, 1))
+    lengths[lengths.sum(axis=1).reshape(-1) > 1.0] -= 1.0
+    lengths = np.abs(lengths)
+    edges = np.stack([b - a, c - a], axis=1)[face]
+    return (edges * lengths).sum(axis=1) + a[face], face
 
 
 def _cloud_samples(V: np.ndarray, n: int, seed: int, fill: bool) -> np.ndarray:

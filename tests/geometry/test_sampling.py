@@ -57,3 +57,20 @@ def test_sample_surface_rejects_bad_input():
     with pytest.raises(InputError):
         sample_surface(SQUARE_V, SQUARE_F, -1)
     assert sample_surface(SQUARE_V, SQUARE_F, 0).shape == (0, 3)
+
+
+@pytest.mark.parametrize("seed", [0, 7])
+def test_sample_surface_draws_trimeshs_points_bit_for_bit(seed):
+    """The sampler is written out to spare commands trimesh's import; its points and faces
+    must stay trimesh's, or every fitted cage and deformation would move."""
+    import trimesh
+
+    rng = np.random.default_rng(seed)
+    V, F = icosphere(2)
+    V = V * rng.uniform(0.5, 3.0, size=3) + rng.normal(size=3)  # unequal face areas
+    mesh = trimesh.Trimesh(vertices=V, faces=F, process=False, validate=False)
+    expected, expected_faces = trimesh.sample.sample_surface(
+        mesh, 3001, seed=np.random.default_rng(seed))
+    points, faces = sample_surface(V, F, 3001, seed=seed, return_faces=True)
+    assert np.array_equal(points, expected)
+    assert np.array_equal(faces, expected_faces)
