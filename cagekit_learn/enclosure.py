@@ -17,7 +17,7 @@ held fixed, as :func:`cagekit_learn.losses.chamfer_loss` holds its nearest neigh
 the CPU the side comes from the core's compiled winding number
 (:func:`cagekit.cage.winding.batched_winding_numbers`, float64, 24x faster than libigl's
 ``winding_number`` a cage at a time) and the nearest face from libigl
-(``point_mesh_squared_distance``, float64), together 12x faster than the torch graph of
+(``point_mesh_squared_distance``, float64), together 5x faster than the torch graph of
 all point-face pairs that CUDA tensors and :func:`~cagekit_learn.coords.compiled_kernels`
 ``(False)`` use; the loss and its gradient are the same but where two faces are equally
 near. It has no NumPy twin in :mod:`cagekit.deformation.terms` (per-pair optimisation starts from
