@@ -31,7 +31,7 @@ from numpy.typing import ArrayLike
 
 from cagekit.cage import cage_topology, check_cage, distance_in_diagonals, winding_numbers
 from cagekit.coords.fastangle import angle_from_sin_cos, half_angle_over_sin
-from cagekit.coords.lanes import cross, load_lanes
+from cagekit.coords.lanes import aligned_empty, cross, load_lanes
 from cagekit.errors import InputError
 from cagekit.geometry.frame import bounding_box_diagonal
 from cagekit.typed import Floats
@@ -153,7 +153,7 @@ def _snap_weights(x, cage_v, faces, edges, face_n, face_off, snap, row):
     return False
 
 
-_LANES = 16
+_LANES = 32
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath={"contract"})
@@ -322,23 +322,28 @@ def _mvc_kernel(points, cage_v, faces, edges, face_edges, face_signs, face_n, fa
     n_chunks = max(1, min(n_blocks, n_chunks))
     for chunk in numba.prange(n_chunks):
         # scratch, once per chunk: O(k + e + m) memory, independent of n
-        P = np.empty((3, L))
-        U = np.empty((3, k, L))
-        inv_d = np.empty((k, L))
-        G = np.empty((3, e, L))
-        X = np.empty((3, e, L))
-        lam = np.empty((3, m, L))
-        acc = np.empty((k, L))
-        P1 = np.empty((3, L))
-        acc1 = np.empty((k, L))
-        cosines = np.empty((e, L))
-        wind = np.empty(L)
+        P = aligned_empty((3, L))
+        U = aligned_empty((3, k, L))
+        inv_d = aligned_empty((k, L))
+        G = aligned_empty((3, e, L))
+        X = aligned_empty((3, e, L))
+        lam = aligned_empty((3, m, L))
+        acc = aligned_empty((k, L))
+        P1 = aligned_empty((3, L))
+        acc1 = aligned_empty((k, L))
+        cosines = aligned_empty((e, L))
+        wind = aligned_empty((L,))
         for blk in range(chunk * n_blocks // n_chunks, (chunk + 1) * n_blocks // n_chunks):
             start = blk * L
             stop = min(start + L, n)
             load_lanes(points, start, P)
-            _mvc_lanes(P, cage_v, faces, edges, face_edges, face_signs, face_n, face_off,
-                       snap, np.nan, U, inv_d, G, X, lam, acc, want_winding, cosines, wind)
+            # the flag as a constant: a compiled version each, no test in the lane loops
+            if want_winding:
+                _mvc_lanes(P, cage_v, faces, edges, face_edges, face_signs, face_n, face_off,
+                           snap, np.nan, U, inv_d, G, X, lam, acc, True, cosines, wind)
+            else:
+                _mvc_lanes(P, cage_v, faces, edges, face_edges, face_signs, face_n, face_off,
+                           snap, np.nan, U, inv_d, G, X, lam, acc, False, cosines, wind)
             for i in range(start, stop):
                 if want_winding:
                     winding[i] = wind[i - start]
