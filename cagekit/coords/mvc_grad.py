@@ -38,14 +38,14 @@ from numpy.typing import ArrayLike
 
 from cagekit.cage import cage_topology
 from cagekit.coords.fastangle import half_angle_over_sin
-from cagekit.coords.lanes import cross
+from cagekit.coords.lanes import aligned_empty, cross
 from cagekit.errors import InputError
 from cagekit.typed import Bools, Floats
 
 __all__ = ["mvc_weights_flagged", "mvc_vjp", "LANES", "DET_TOL", "RESOLVE_TOL"]
 
 #: points per block (one per SIMD lane)
-LANES = 16
+LANES = 32
 #: default ``det_tol``: faces with ``|u_a . (u_b x u_c)|`` at most this flag their rows
 DET_TOL = float(np.finfo(np.float64).tiny) ** 0.4
 #: rows whose weight sum is at most this times the sum of the weights' magnitudes are flagged
@@ -225,8 +225,9 @@ def _forward_scratch(k, e, m):
     """A thread's buffers for :func:`_forward_lanes` (``k`` vertices, ``e`` edges, ``m``
     faces): ``P, VERT, EDGE, FACE, LAM, W, bad`` and the ``keep`` mask."""
     L = LANES
-    return (np.empty((3, L)), np.empty((4, k, L)), np.empty((7, e, L)), np.empty((4, m, L)),
-            np.empty((3, m, L)), np.empty((k, L)), np.empty(L), np.empty(L, dtype=np.bool_))
+    return (aligned_empty((3, L)), aligned_empty((4, k, L)), aligned_empty((7, e, L)),
+            aligned_empty((4, m, L)), aligned_empty((3, m, L)), aligned_empty((k, L)),
+            aligned_empty((L,)), np.empty(L, dtype=np.bool_))
 
 
 @numba.njit(cache=True, inline="always")
@@ -476,13 +477,14 @@ def _vjp_kernel(points, cage_v, faces, edges, face_edges, face_signs, nrm, off, 
     nb, total, n_chunks = _chunking(B, n, n_chunks)
     for chunk in numba.prange(n_chunks):
         P, VERT, EDGE, FACE, LAM, W, bad, keep = _forward_scratch(k, e, m)
-        gW = np.empty((k, L))
-        FR = np.empty((7, m, L))
-        GE = np.empty((7, e, L))
-        GV = np.empty((3, k, L))
-        ACC = np.zeros((3, k + 1, L))
-        inv_s = np.empty(L)
-        dot = np.empty(L)
+        gW = aligned_empty((k, L))
+        FR = aligned_empty((7, m, L))
+        GE = aligned_empty((7, e, L))
+        GV = aligned_empty((3, k, L))
+        ACC = aligned_empty((3, k + 1, L))
+        ACC[:] = 0.0
+        inv_s = aligned_empty((L,))
+        dot = aligned_empty((L,))
         for blk in range(chunk * total // n_chunks, (chunk + 1) * total // n_chunks):
             b, start, stop = _block(blk, nb, n)
             _keep_lanes(skip, b, start, stop, keep)
