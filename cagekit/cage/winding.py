@@ -17,13 +17,13 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from cagekit.coords.fastangle import angle_from_sin_cos
-from cagekit.coords.lanes import load_lanes
+from cagekit.coords.lanes import aligned_empty, load_lanes
 from cagekit.errors import InputError
 from cagekit.typed import Floats
 
 __all__ = ["batched_winding_numbers"]
 
-_LANES = 16
+_LANES = 32
 
 
 @numba.njit(cache=True, error_model="numpy", fastmath={"contract"})
@@ -60,8 +60,8 @@ def _winding_kernel(points, corners, out):
     n_blocks = (n + _LANES - 1) // _LANES
     for job in numba.prange(B * n_blocks):
         b, blk = job // n_blocks, job % n_blocks
-        P = np.empty((3, _LANES))
-        acc = np.empty(_LANES)
+        P = aligned_empty((3, _LANES))
+        acc = aligned_empty((_LANES,))
         start = blk * _LANES
         load_lanes(points[b], start, P)
         _winding_lanes(P, corners[b], acc)
