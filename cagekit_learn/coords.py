@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import threading
 from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Literal, overload
@@ -90,6 +91,27 @@ class _Consts:
 
 
 def _consts(faces_np: np.ndarray, k: int, snap: float, dtype, device) -> _Consts:
+    """The cage's constants for the layer, kept for the last :data:`_CACHED_CONSTS` cages
+    (a training step binds through the same cage faces every time)."""
+    faces_np = np.ascontiguousarray(faces_np, dtype=np.int64)
+    key = (faces_np.shape, faces_np.tobytes(), k, snap, dtype, str(device))
+    with _CONSTS_LOCK:
+        known = _CONSTS.get(key)
+    if known is None:
+        known = _make_consts(faces_np, k, snap, dtype, device)
+        with _CONSTS_LOCK:
+            while len(_CONSTS) >= _CACHED_CONSTS:
+                _CONSTS.pop(next(iter(_CONSTS)))  # the oldest
+            _CONSTS[key] = known
+    return known
+
+
+_CACHED_CONSTS = 16
+_CONSTS: dict[tuple, _Consts] = {}
+_CONSTS_LOCK = threading.Lock()
+
+
+def _make_consts(faces_np: np.ndarray, k: int, snap: float, dtype, device) -> _Consts:
     topo = cage_topology(faces_np)
     m = len(faces_np)
     fe = topo.face_edges            # columns: ab, bc, ca
@@ -100,8 +122,8 @@ def _consts(faces_np: np.ndarray, k: int, snap: float, dtype, device) -> _Consts
     scatter = np.zeros((k, 3 * m))
     scatter[vert, np.arange(3 * m)] = 1.0
 
-    def idx(a):
-        return torch.as_tensor(np.ascontiguousarray(a), dtype=torch.int64, device=device)
+    def idx(a):  # a copy: the topology's arrays are read-only
+        return torch.tensor(np.ascontiguousarray(a), dtype=torch.int64, device=device)
 
     tiny = torch.finfo(dtype).tiny
     hi = _consts(faces_np, k, snap, torch.float64, device) if dtype != torch.float64 else None

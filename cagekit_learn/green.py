@@ -138,9 +138,9 @@ def green_coordinates(points: torch.Tensor, cage_v: torch.Tensor,
     faces_np = np.ascontiguousarray(np.asarray(cage_f), dtype=np.int64)
     topo = cage_topology(faces_np)
     faces = torch.as_tensor(faces_np, device=X.device)
-    edges = torch.as_tensor(topo.edges, device=X.device)
-    face_edges = torch.as_tensor(topo.face_edges, device=X.device)
-    signs = torch.as_tensor(topo.face_edge_signs, dtype=X.dtype, device=X.device)
+    edges = torch.tensor(topo.edges, device=X.device)  # copies: the topology is read-only
+    face_edges = torch.tensor(topo.face_edges, device=X.device)
+    signs = torch.tensor(topo.face_edge_signs, dtype=X.dtype, device=X.device)
     terms = _face_terms(V, faces)
     if not bool((terms[1] > 0).all()):
         raise InputError("Green coordinates need cage faces of positive area")

@@ -15,6 +15,7 @@ get zero weight. See docs/architecture.md.
 
 from __future__ import annotations
 
+import threading
 import warnings
 
 import numpy as np
@@ -22,7 +23,7 @@ from numpy.typing import ArrayLike
 
 from cagekit.cage.topology import cage_topology, face_components, signed_volume
 from cagekit.errors import CageError, CagekitWarning, InputError
-from cagekit.typed import Bools, Faces, Floats
+from cagekit.typed import Bools, Faces, Floats, Ints
 
 __all__ = ["check_cage", "self_intersecting_faces", "warn_self_intersecting",
            "cage_encloses", "winding_numbers", "distance_in_diagonals"]
@@ -96,23 +97,7 @@ def check_cage(cage_v: ArrayLike, cage_f: ArrayLike, name: str | None = None, *,
     if np.any(twice_area <= 1e-24 * diagonal**2):
         raise CageError(f"cage face {int(np.argmin(twice_area))} has zero area", name)
 
-    topo = cage_topology(f)
-    uses = np.bincount(topo.face_edges.ravel(), minlength=len(topo.edges))
-    if np.any(uses == 1):
-        a, b = topo.edges[np.argmax(uses == 1)]
-        raise CageError(f"cage is open: edge ({a}, {b}) has only one face; a closed cage is "
-                        "required", name)
-    if np.any(uses > 2):
-        a, b = topo.edges[np.argmax(uses > 2)]
-        raise CageError(f"cage is not 2-manifold: edge ({a}, {b}) has {uses.max()} faces", name)
-    _check_manifold_vertices(f, name)
-    signed_uses = np.zeros(len(topo.edges))
-    np.add.at(signed_uses, topo.face_edges.ravel(), topo.face_edge_signs.ravel())
-    if np.any(signed_uses != 0):
-        a, b = topo.edges[np.argmax(signed_uses != 0)]
-        raise CageError(f"cage faces are not consistently oriented (edge ({a}, {b}))", name)
-
-    labels = face_components(len(v), f)
+    labels = _closed_manifold_components(f, len(v), name)
     out = f.copy()
     for label in np.unique(labels):
         sel = labels == label
@@ -232,6 +217,49 @@ def warn_self_intersecting(cage_v: ArrayLike, cage_f: ArrayLike, name: str = "th
             f"{name}: the cage intersects itself ({crossing} of its {len(crossing_faces)} faces "
             "cross another face); the shape it carries folds over"), stacklevel=2)
     return crossing
+
+
+def _closed_manifold_components(f: np.ndarray, n_vertices: int, name: str | None) -> Ints:
+    """Each face's component, after checking that the faces are closed, 2-manifold and
+    consistently oriented (raises :class:`CageError` naming the first offending edge).
+
+    These depend on the faces alone, so the labels of the last :data:`_CACHED_CHECKS`
+    face arrays that passed are kept: a training step checks the same cage faces again
+    every step (0.7 ms of a 5 ms forward pass). Failures are never kept.
+    """
+    key = (n_vertices, f.shape, f.tobytes()) if len(f) <= 20_000 else None
+    with _CHECKS_LOCK:
+        known = _CHECKED.get(key) if key is not None else None
+    if known is not None:
+        return known
+    topo = cage_topology(f)
+    uses = np.bincount(topo.face_edges.ravel(), minlength=len(topo.edges))
+    if np.any(uses == 1):
+        a, b = topo.edges[np.argmax(uses == 1)]
+        raise CageError(f"cage is open: edge ({a}, {b}) has only one face; a closed cage is "
+                        "required", name)
+    if np.any(uses > 2):
+        a, b = topo.edges[np.argmax(uses > 2)]
+        raise CageError(f"cage is not 2-manifold: edge ({a}, {b}) has {uses.max()} faces", name)
+    _check_manifold_vertices(f, name)
+    signed_uses = np.zeros(len(topo.edges))
+    np.add.at(signed_uses, topo.face_edges.ravel(), topo.face_edge_signs.ravel())
+    if np.any(signed_uses != 0):
+        a, b = topo.edges[np.argmax(signed_uses != 0)]
+        raise CageError(f"cage faces are not consistently oriented (edge ({a}, {b}))", name)
+    labels = face_components(n_vertices, f)
+    labels.flags.writeable = False
+    if key is not None:
+        with _CHECKS_LOCK:
+            while len(_CHECKED) >= _CACHED_CHECKS:
+                _CHECKED.pop(next(iter(_CHECKED)))  # the oldest
+            _CHECKED[key] = labels
+    return labels
+
+
+_CACHED_CHECKS = 64
+_CHECKED: dict[tuple, np.ndarray] = {}
+_CHECKS_LOCK = threading.Lock()
 
 
 def winding_numbers(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike) -> Floats:

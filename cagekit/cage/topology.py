@@ -5,6 +5,7 @@ Nothing here reorders, merges or drops vertices: a cage's vertex order is its id
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -46,7 +47,9 @@ def cage_topology(cage_f: np.ndarray) -> CageTopology:
     Returns
     -------
     CageTopology
-        See :class:`CageTopology`.
+        See :class:`CageTopology`. Its arrays are read-only: the topologies of the last 64
+        face arrays of up to 20,000 faces are kept and handed out again (a training step
+        asks for its cage's five times).
 
     Examples
     --------
@@ -55,16 +58,44 @@ def cage_topology(cage_f: np.ndarray) -> CageTopology:
     [[0, 1], [0, 2], [0, 3], [1, 2], [2, 3]]
     """
     faces = np.asarray(cage_f, dtype=np.int64)
+    key = None
+    if faces.ndim == 2 and len(faces) <= _CACHED_FACES:
+        key = (faces.shape, faces.tobytes())
+        known = _TOPOLOGIES.get(key)
+        if known is not None:
+            return known
+    topology = _topology(faces)
+    if key is not None:
+        with _TOPOLOGIES_LOCK:
+            while len(_TOPOLOGIES) >= _CACHED_TOPOLOGIES:
+                _TOPOLOGIES.pop(next(iter(_TOPOLOGIES)))  # the oldest
+            _TOPOLOGIES[key] = topology
+    return topology
+
+
+#: cages of up to this many faces have their topology kept (a training step asks the same
+#: cage's topology five times, 0.1 ms each); the last :data:`_CACHED_TOPOLOGIES` of them
+_CACHED_FACES = 20_000
+_CACHED_TOPOLOGIES = 64
+_TOPOLOGIES: dict[tuple, CageTopology] = {}
+_TOPOLOGIES_LOCK = threading.Lock()
+
+
+def _topology(faces: np.ndarray) -> CageTopology:
+    """:func:`cage_topology` computed, its arrays read-only (they may be shared)."""
     directed = np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2)
     lo = directed.min(axis=1)
     hi = directed.max(axis=1)
     edges, inverse = np.unique(np.stack([lo, hi], axis=1), axis=0, return_inverse=True)
     signs = np.where(directed[:, 0] < directed[:, 1], 1.0, -1.0)
-    return CageTopology(
+    topology = CageTopology(
         edges=np.ascontiguousarray(edges, dtype=np.int64),
         face_edges=np.ascontiguousarray(inverse.reshape(-1, 3), dtype=np.int64),
         face_edge_signs=np.ascontiguousarray(signs.reshape(-1, 3)),
     )
+    for array in (topology.edges, topology.face_edges, topology.face_edge_signs):
+        array.flags.writeable = False
+    return topology
 
 
 def unique_edges(faces: ArrayLike) -> Ints:
@@ -88,7 +119,7 @@ def unique_edges(faces: ArrayLike) -> Ints:
     faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
     if not len(faces):
         return np.zeros((0, 2), dtype=np.int64)
-    return cage_topology(faces).edges
+    return cage_topology(faces).edges.copy()  # the cached one is shared and read-only
 
 
 def signed_volume(cage_v: np.ndarray, cage_f: np.ndarray) -> float:

@@ -163,3 +163,26 @@ def test_cage_encloses_refuses_non_finite_points(bad):
     moved[5, 2] = bad
     with pytest.raises(InputError, match=r"cage vertex 5 is not finite"):
         cage_encloses([[0.0, 0.0, 0.0]], moved, f)
+
+
+def test_cage_topology_is_kept_read_only_and_follows_the_faces():
+    _, f = box_cage()
+    first, again = cage_topology(f), cage_topology(f.copy())
+    assert again is first  # kept: the same faces, even in another array
+    with pytest.raises(ValueError, match="read-only"):
+        first.edges[0, 0] = 5
+    other = cage_topology(f[:, ::-1])  # other faces: computed for them, not the kept one
+    assert other is not first
+    assert np.array_equal(np.sort(other.face_edge_signs, axis=1),  # each face reversed
+                          np.sort(-first.face_edge_signs, axis=1))
+
+
+def test_check_cage_orients_by_the_vertices_and_refuses_every_time_with_kept_faces():
+    v, f = box_cage()
+    assert np.array_equal(check_cage(v, f), f)
+    mirrored = v * [-1.0, 1.0, 1.0]  # the same faces now point inward
+    assert np.array_equal(check_cage(mirrored, f), f[:, ::-1])
+    assert np.array_equal(check_cage(v, f), f)  # and back
+    for _ in range(2):  # a failure is not kept as a pass
+        with pytest.raises(CageError, match="open"):
+            check_cage(v, f[1:])
