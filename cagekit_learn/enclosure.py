@@ -15,7 +15,7 @@ vertices away from the surface and carries no gradient; the gradient comes from 
 distance to the nearest triangle (:func:`triangle_distances`), chosen without gradient and
 held fixed, as :func:`cagekit_learn.losses.chamfer_loss` holds its nearest neighbours. On
 the CPU the side comes from the core's compiled winding number
-(:func:`cagekit.cage.winding.batched_winding_numbers`, float64, 24x faster than libigl's
+(:func:`cagekit.coords.winding.batched_winding_numbers`, float64, 24x faster than libigl's
 ``winding_number`` a cage at a time) and the nearest face from libigl
 (``point_mesh_squared_distance``, float64), together 5x faster than the torch graph of
 all point-face pairs that CUDA tensors and :func:`~cagekit_learn.coords.compiled_kernels`
@@ -33,7 +33,7 @@ import numpy as np
 import torch
 from numpy.typing import ArrayLike
 
-from cagekit.cage.winding import batched_winding_numbers
+from cagekit.coords.winding import batched_winding_numbers
 from cagekit.errors import InputError
 from cagekit_learn.coords import kernels_enabled
 
@@ -151,7 +151,7 @@ def triangle_distances(P: torch.Tensor, V: torch.Tensor,
 
 def _side_and_nearest_igl(P: torch.Tensor, V: torch.Tensor,
                           F: torch.Tensor | ArrayLike) -> tuple[torch.Tensor, torch.Tensor]:
-    """Inside flags (winding number >= 1/2, :func:`cagekit.cage.winding.batched_winding_numbers`)
+    """Inside flags (winding number >= 1/2, :func:`cagekit.coords.winding.batched_winding_numbers`)
     and libigl's nearest faces, (B, n) each."""
     import igl
 

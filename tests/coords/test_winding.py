@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from cagekit.cage import box_cage
-from cagekit.cage.winding import batched_winding_numbers
+from cagekit.coords.winding import batched_winding_numbers
 from cagekit.errors import InputError
 
 
