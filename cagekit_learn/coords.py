@@ -93,7 +93,10 @@ class _Consts:
 def _consts(faces_np: np.ndarray, k: int, snap: float, dtype, device) -> _Consts:
     """The cage's constants for the layer, kept for the last :data:`_CACHED_CONSTS` cages
     (a training step binds through the same cage faces every time)."""
-    faces_np = np.ascontiguousarray(faces_np, dtype=np.int64)
+    faces_np = np.array(faces_np, dtype=np.int64)  # its own copy: the caller's may change
+    faces_np.flags.writeable = False
+    if len(faces_np) > _CACHED_FACES:
+        return _make_consts(faces_np, k, snap, dtype, device)
     key = (faces_np.shape, faces_np.tobytes(), k, snap, dtype, str(device))
     with _CONSTS_LOCK:
         known = _CONSTS.get(key)
@@ -107,6 +110,7 @@ def _consts(faces_np: np.ndarray, k: int, snap: float, dtype, device) -> _Consts
 
 
 _CACHED_CONSTS = 16
+_CACHED_FACES = 5_000  # larger cages are not kept: their scatter matrix is (k, 3 m) dense
 _CONSTS: dict[tuple, _Consts] = {}
 _CONSTS_LOCK = threading.Lock()
 

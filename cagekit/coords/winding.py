@@ -55,7 +55,7 @@ def _winding_lanes(P: np.ndarray, corners: np.ndarray, out: np.ndarray) -> None:
 
 @numba.njit(parallel=True, cache=True, error_model="numpy")
 def _winding_kernel(points, corners, out):
-    """``out[b, i]``: twice the summed solid angle of ``points[b, i]`` in ``corners[b]``."""
+    """``out[b, i]``: half the summed solid angle of ``points[b, i]`` in ``corners[b]``."""
     B, n = points.shape[0], points.shape[1]
     n_blocks = (n + _LANES - 1) // _LANES
     for job in numba.prange(B * n_blocks):

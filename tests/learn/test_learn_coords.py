@@ -613,3 +613,16 @@ def test_gradients_stay_finite_when_one_point_is_far():
     assert torch.isfinite(P.grad).all() and torch.isfinite(V.grad).all()
     # linear precision: d(sum W V)/dP = 1 for every coordinate
     torch.testing.assert_close(P.grad, torch.ones_like(P), rtol=0, atol=1e-9)
+
+
+def test_a_kept_cage_does_not_follow_edits_of_a_binding_handed_out():
+    """The layer keeps each cage's constants; a caller editing the faces a binding handed
+    out must not reach them (the kept faces are the layer's own copy)."""
+    v, f = box_cage()
+    V = torch.tensor(v, dtype=torch.float64)
+    x = torch.tensor(np.random.default_rng(0).uniform(-0.4, 0.4, (50, 3)))
+    binding = bind(x, V, f)
+    before = mean_value_coordinates(x, V, f)
+    binding.cage_f[0] = binding.cage_f[0].flip(0).clone()  # edited in place
+    after = mean_value_coordinates(x, V, f)
+    assert torch.equal(after, before)
