@@ -449,7 +449,7 @@ def shape_writer(out: str, has_faces: bool,
     from cagekit import io
 
     ext = os.path.splitext(out)[1].lower()
-    mesh_exts = set(io.SUPPORTED_MESH_EXTENSIONS) - {".gltf"}  # save_mesh writes no GLTF
+    mesh_exts = set(io.WRITTEN_MESH_EXTENSIONS)
     point_exts = set(io.SUPPORTED_POINT_EXTENSIONS)
     if has_faces and ext in mesh_exts:
         if source is not None:

@@ -234,7 +234,7 @@ def _check_options(ctx, source, target, out, method, cage_path, save_cage, symme
                                "optimisation: with --model they need --refine")
     outputs = {"out": out, "save_cage": save_cage, "preview": preview}
     if save_cage is not None:
-        mesh_exts = set(io.SUPPORTED_MESH_EXTENSIONS) - {".gltf"}
+        mesh_exts = set(io.WRITTEN_MESH_EXTENSIONS)
         for path in (save_cage, _deformed_cage_path(save_cage)):
             check_output(path, inputs, extensions=mesh_exts)
     if preview is not None:

@@ -72,7 +72,7 @@ def fit_cage(ctx: click.Context, mesh: str, out: str, faces: int, method: str, c
         raise click.BadParameter(f"the template cage has {TEMPLATE_FACES} faces, more than "
                                  f"{faces}: give --faces {TEMPLATE_FACES} or more, or --method "
                                  "wrap", param_hint="'--faces'")
-    check_output(out, (mesh,), extensions=set(io.SUPPORTED_MESH_EXTENSIONS) - {".gltf"})
+    check_output(out, (mesh,), extensions=set(io.WRITTEN_MESH_EXTENSIONS))
     if preview is not None:
         check_output(preview, (mesh, out), extensions={".png"})
         if same_file(preview, out):

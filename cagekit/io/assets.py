@@ -91,10 +91,12 @@ def save_deformed(path: str | os.PathLike, V: ArrayLike, F: ArrayLike,
     carried = asset_contents(source)
     if out_ext not in _KEEPS.get(src_ext, ()) or not carried:
         if carried:
-            keeps = "/".join(e[1:].upper() for e in _KEEPS[src_ext])
+            keeps = "/".join(e[1:].upper() for e in _KEEPS.get(src_ext, ()))
+            advice = (f"write {keeps} to keep them" if keeps
+                      else f"cagekit writes no {src_ext[1:].upper()}")
             warnings.warn(MeshFileWarning(
                 f"{os.fspath(path)}: {', '.join(carried)} of {os.fspath(source)} are not kept "
-                f"in {out_ext[1:].upper() or 'this format'}; write {keeps} to keep them"),
+                f"in {out_ext[1:].upper() or 'this format'}; {advice}"),
                 stacklevel=2)
         save_mesh(path, V, F)
         return
@@ -199,7 +201,8 @@ def asset_contents(source: str | os.PathLike) -> list[str]:
     -------
     list of str
         For example ``["UVs", "normals", "materials"]``; empty for a file with only
-        vertices and faces (or a format that carries nothing else: OFF, STL).
+        vertices and faces (or a format that carries nothing else: OFF, STL). A PMD
+        file's UVs, normals and bones are named; no output keeps them.
 
     Examples
     --------
@@ -213,6 +216,8 @@ def asset_contents(source: str | os.PathLike) -> list[str]:
         return _ply_contents(source)
     if ext in (".glb", ".gltf"):
         return ["UVs, materials, normals and the scene"]
+    if ext == ".pmd":
+        return ["UVs, normals and bones"]
     return []
 
 

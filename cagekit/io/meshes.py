@@ -33,10 +33,12 @@ from numpy.typing import ArrayLike
 
 from cagekit.errors import InputError, MeshFileError, MeshFileWarning
 from cagekit.io.files import atomic_output, check_file, extension, one_line, read_bytes, read_text
+from cagekit.io.pmd import read_pmd
 
 __all__ = [
     "SUPPORTED_MESH_EXTENSIONS",
     "SUPPORTED_POINT_EXTENSIONS",
+    "WRITTEN_MESH_EXTENSIONS",
     "load_mesh",
     "load_points",
     "load_shape",
@@ -44,8 +46,10 @@ __all__ = [
     "save_points",
 ]
 
-SUPPORTED_MESH_EXTENSIONS = (".obj", ".ply", ".off", ".stl", ".glb", ".gltf")
-"""Extensions :func:`load_mesh` reads (:func:`save_mesh` writes all but ``.gltf``)."""
+SUPPORTED_MESH_EXTENSIONS = (".obj", ".ply", ".off", ".stl", ".glb", ".gltf", ".pmd")
+"""Extensions :func:`load_mesh` reads (``.pmd``: 0 A.D.'s models, :mod:`cagekit.io.pmd`)."""
+WRITTEN_MESH_EXTENSIONS = (".obj", ".ply", ".off", ".stl", ".glb")
+"""Extensions :func:`save_mesh` writes (not GLTF or PMD)."""
 SUPPORTED_POINT_EXTENSIONS = (".ply", ".xyz", ".pts", ".txt", ".npy")
 """Point-cloud extensions :func:`load_shape` reads and :func:`save_points` writes."""
 
@@ -66,8 +70,9 @@ def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     Parameters
     ----------
     path : str or os.PathLike
-        An OBJ, PLY, OFF, STL, GLB or GLTF file with at least one face. Polygons are
-        fan-triangulated; GLB/GLTF scenes are flattened with their transforms applied.
+        An OBJ, PLY, OFF, STL, GLB, GLTF or PMD (0 A.D.'s models) file with at least one
+        face. Polygons are fan-triangulated; GLB/GLTF scenes are flattened with their
+        transforms applied; a PMD model is read in its rest pose.
 
     Returns
     -------
@@ -562,6 +567,11 @@ def _read_with_trimesh(path):
     return V, F
 
 
+def _read_pmd(path):
+    model = read_pmd(path)
+    return model.vertices, model.faces
+
+
 def _read_xyz(path):
     text = read_text(path, MeshFileError)
     rows, lines = [], []
@@ -607,6 +617,7 @@ _READERS = {
     ".stl": (_read_with_trimesh, "STL"),
     ".glb": (_read_with_trimesh, "GLB"),
     ".gltf": (_read_with_trimesh, "GLTF"),
+    ".pmd": (_read_pmd, "PMD"),
     ".xyz": (_read_xyz, "XYZ"),
     ".pts": (_read_xyz, "PTS"),
     ".txt": (_read_xyz, "TXT"),

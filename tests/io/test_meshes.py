@@ -548,5 +548,6 @@ def test_failed_save_leaves_existing_file_untouched(tmp_path, monkeypatch):
 
 
 def test_supported_extension_tuples():
-    assert set(cio.SUPPORTED_MESH_EXTENSIONS) == {".obj", ".ply", ".off", ".stl", ".glb", ".gltf"}
+    assert set(cio.SUPPORTED_MESH_EXTENSIONS) == {".obj", ".ply", ".off", ".stl", ".glb", ".gltf",
+                                                ".pmd"}
     assert set(cio.SUPPORTED_POINT_EXTENSIONS) == {".ply", ".xyz", ".pts", ".txt", ".npy"}
