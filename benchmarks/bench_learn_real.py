@@ -28,7 +28,11 @@ results that fell back to a fitted cage, and issue 32's targets as ratios to ``c
 Usage::
 
     python benchmarks/bench_learn_real.py [--model chairs] [--train-steps N --run-dir DIR]
-        [--methods M ...] [--pictures DIR] [--json FILE]
+        [--test-set {held-out,0ad}] [--methods M ...] [--pictures DIR] [--json FILE]
+
+``--test-set 0ad`` tests on the game furniture of Debian's ``0ad-data`` instead
+(:mod:`cagekit.datasets.zero_ad`: four low-poly tables, two benches; each onto the next of
+its kind, and back), real shapes unlike every training shape.
 
 ``--model`` evaluates a model (a shipped name, default ``chairs``, or a run folder);
 ``--train-steps`` first trains one from the shipped recipe for that many steps into
@@ -52,6 +56,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import cagekit  # noqa: E402
 from cagekit.coords import bind  # noqa: E402
+from cagekit.datasets import zero_ad  # noqa: E402
 from cagekit.datasets.sweethome3d import SEAT_KINDS  # noqa: E402
 from cagekit.errors import OutsideCageWarning  # noqa: E402
 from cagekit.io import load_mesh  # noqa: E402
@@ -202,6 +207,10 @@ def main(argv=None) -> dict:
                         help="a shipped model's name or a run folder (default chairs)")
     parser.add_argument("--recipe", default="chairs", choices=sorted(RECIPES),
                         help="whose held-out shapes make the test pairs (default chairs)")
+    parser.add_argument("--test-set", default="held-out", choices=("held-out", "0ad"),
+                        help="the recipe's held-out sweethome3d models (default), or the "
+                             "game furniture of Debian's 0ad-data of the recipe's kinds "
+                             "(cagekit.datasets.zero_ad: low-poly, never trained on)")
     parser.add_argument("--train-steps", type=int,
                         help="train a model from the shipped recipe first (into --run-dir)")
     parser.add_argument("--run-dir", default="out/bench_learn_real")
@@ -212,9 +221,11 @@ def main(argv=None) -> dict:
     args = parser.parse_args(argv)
 
     train_seats, held_out = training_shapes(args.recipe)
+    if args.test_set == "0ad":
+        held_out = zero_ad.furniture(RECIPES[args.recipe]["kinds"])
     pairs = test_pairs(held_out, RECIPES[args.recipe]["kinds"])
-    print(f"{len(train_seats)} training seats, {len(held_out)} held out, "
-          f"{len(pairs)} test pairs")
+    print(f"{len(train_seats)} training shapes, {len(held_out)} test shapes "
+          f"({args.test_set}), {len(pairs)} test pairs")
     training, model_path = None, args.model
     if args.train_steps:
         folder = training_folder(train_seats, os.path.join(args.run_dir, "train"))
@@ -245,7 +256,8 @@ def main(argv=None) -> dict:
               flush=True)
     print_table(rows, args.methods)
     complete = {"cage", "learned", "learned+refine"} <= set(args.methods)
-    out = {"training": training, "model": model_path, "pairs": rows,
+    out = {"training": training, "model": model_path, "test_set": args.test_set,
+           "pairs": rows,
            "medians": {m: {k: median(rows, m, k) for k in FIGURES} for m in args.methods},
            "targets": targets(rows) if complete else None,
            "train_models": [m.name for _, m in train_seats],
