@@ -5,7 +5,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: package-check blender-venv test-blender blender-extension blender-render bench-blender demo test test-emulated test-slow lint docs architecture assets bench bench-assets bench-fit-cage bench-deform bench-learn bench-learn-real bench-transfer bench-amplify models venv clean
+.PHONY: package-check blender-venv test-blender blender-extension blender-render bench-blender demo test test-emulated test-slow lint docs architecture assets bench bench-assets bench-fit-cage bench-deform bench-learn bench-learn-real bench-learn-real-0ad game-assets bench-transfer bench-amplify models venv clean
 
 $(STAMP): setup.cfg pyproject.toml constraints.txt constraints-common.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -87,6 +87,11 @@ FURNITURE := /usr/share/sweethome3d/furniture/KatorLegaz.sh3f
 assets:
 	test -f $(FURNITURE) || DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends sweethome3d-furniture >/dev/null || (apt-get update -q >/dev/null && DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends sweethome3d-furniture >/dev/null)
 
+# Debian's 0ad-data (1.4 GB: the game 0 A.D.'s 4,010 PMD meshes; installed as root when missing)
+GAME_ART := /usr/share/games/0ad/mods/public/public.zip
+game-assets:
+	test -f $(GAME_ART) || DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends 0ad-data >/dev/null || (apt-get update -q >/dev/null && DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends 0ad-data >/dev/null)
+
 # every model of sweethome3d-furniture loaded and caged (about 30 min on 2 cores)
 bench-assets: $(STAMP) assets
 	mkdir -p out
@@ -121,6 +126,11 @@ models: $(STAMP) assets
 # the shipped chairs model on unseen real seats, beside per-pair optimisation
 bench-learn-real: $(STAMP) assets
 	$(BIN)/python benchmarks/bench_learn_real.py --model chairs --json out/bench_learn_real.json --pictures out/learn_real
+
+# the shipped models on the game furniture of 0ad-data (unseen low-poly tables and benches)
+bench-learn-real-0ad: $(STAMP) assets game-assets
+	$(BIN)/python benchmarks/bench_learn_real.py --recipe tables --model tables --test-set 0ad --json out/blr0ad/tables.json --pictures out/blr0ad/tables
+	$(BIN)/python benchmarks/bench_learn_real.py --model chairs --test-set 0ad --json out/blr0ad/chairs.json --pictures out/blr0ad/chairs
 
 # writes the humanoid data set (out/humanoid), trains the fixed-source model (6000 steps,
 # about 16 min, reused when there) and compares the transfers with ground truth
