@@ -19,8 +19,12 @@ rest, no crash.
 Usage::
 
     python benchmarks/bench_assets.py [--faces 200] [--workers 2] [--limit N]
-        [--catalogs KatorLegaz ...] [--json out/bench_assets.json]
+        [--catalogs KatorLegaz ... | --game-art N] [--json out/bench_assets.json]
         [--sheet out/assets_sheet.png] [--timeout 600]
+
+``--game-art N`` runs the same on N meshes of Debian's ``0ad-data`` instead (the game
+0 A.D.'s PMD meshes: props, plants, buildings, skinned bodies; every k-th of its sorted
+list, :func:`cagekit.datasets.zero_ad.meshes`), a table per folder.
 
 ``make bench-assets`` installs the package when missing (as root) and runs it.
 """
@@ -198,15 +202,24 @@ def main(argv=None) -> int:
     parser.add_argument("--json", default=None)
     parser.add_argument("--sheet", default=None, help="Contact sheet PNG of fitted cages.")
     parser.add_argument("--sheet-count", type=int, default=16)
+    parser.add_argument("--game-art", type=int, default=None, metavar="N",
+                        help="instead: N meshes of Debian's 0ad-data, spread evenly over its "
+                             "4,010 (cagekit.datasets.zero_ad.meshes), by folder")
     args = parser.parse_args(argv)
     if args.worker:
         _worker()
         return 0
 
-    from cagekit.datasets import sweethome3d
+    from cagekit.datasets import sweethome3d, zero_ad
 
-    catalogs = tuple(args.catalogs) if args.catalogs else sweethome3d.CATALOGS
-    models = sweethome3d.models(catalogs, cache=args.cache)[: args.limit]
+    if args.game_art:
+        models = zero_ad.meshes(args.game_art)[: args.limit]
+        catalogs = tuple(dict.fromkeys(m.catalog for m in models))
+        source = "0ad-data"
+    else:
+        catalogs = tuple(args.catalogs) if args.catalogs else sweethome3d.CATALOGS
+        models = sweethome3d.models(catalogs, cache=args.cache)[: args.limit]
+        source = "sweethome3d-furniture"
     by_path = {m.path: m for m in models}
     os.makedirs(args.cages, exist_ok=True)
     pool = _Pool(max(1, args.workers), args.timeout)
@@ -230,7 +243,7 @@ def main(argv=None) -> int:
     order = {m.path: i for i, m in enumerate(models)}
     rows.sort(key=lambda r: order[r["path"]])
 
-    lines = [f"sweethome3d-furniture, fit_cage(faces={args.faces}), {len(rows)} models, "
+    lines = [f"{source}, fit_cage(faces={args.faces}), {len(rows)} models, "
              f"{args.workers} workers, {platform.processor() or platform.machine()}, "
              f"wall {wall / 60:.1f} min", "",
              "| catalog | models | loaded | fitted, every guarantee | clear error | "

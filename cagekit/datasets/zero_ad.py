@@ -31,7 +31,7 @@ from cagekit.datasets.sweethome3d import Model
 from cagekit.errors import InputError
 from cagekit.io.files import atomic_output
 
-__all__ = ["PUBLIC_ZIP", "LICENSE", "CREATOR", "FURNITURE", "furniture"]
+__all__ = ["PUBLIC_ZIP", "LICENSE", "CREATOR", "FURNITURE", "furniture", "meshes"]
 
 #: where Debian puts the game's art
 PUBLIC_ZIP = "/usr/share/games/0ad/mods/public/public.zip"
@@ -90,6 +90,55 @@ def furniture(kinds: Iterable[str] = tuple(FURNITURE), cache: str = "out/0ad",
                 _unpack_member(zf, member, path, archive)
             out.append((kind, Model(path=path, catalog="0ad-data", name=name,
                                     category=kind, creator=CREATOR, license=LICENSE)))
+    return out
+
+
+def meshes(count: int | None = None, cache: str = "out/0ad/all",
+           archive: str = PUBLIC_ZIP) -> list[Model]:
+    """The game's PMD meshes (all 4,010, or ``count`` of them spread evenly), unpacked.
+
+    Parameters
+    ----------
+    count : int, optional
+        How many: every k-th mesh of the archive's sorted list, k = total // count, the
+        first ``count`` of them (the same ones on every machine). None: all.
+    cache : str, default "out/0ad/all"
+        Where the PMD files are written, under their folders in the archive.
+    archive : str
+        The game's ``public.zip``.
+
+    Returns
+    -------
+    list of Model
+        In the archive's sorted order; ``catalog`` is the mesh's folder below
+        ``art/meshes`` (``props``, ``gaia``, ``structural``, ``skeletal``...), ``name``
+        its file's stem, creator :data:`CREATOR` and licence :data:`LICENSE`.
+
+    Raises
+    ------
+    InputError
+        The archive is missing (the package is not installed), or ``count`` < 1.
+    """
+    if not os.path.isfile(archive):
+        raise InputError("missing: install Debian's 0ad-data (apt-get install 0ad-data)",
+                         archive)
+    if count is not None and count < 1:
+        raise InputError(f"count must be at least 1, got {count}")
+    out = []
+    with zipfile.ZipFile(archive) as zf:
+        members = sorted(m for m in zf.namelist() if m.endswith(".pmd"))
+        if count is not None:
+            members = members[::max(1, len(members) // count)][:count]
+        for member in members:
+            path = os.path.join(cache, member.replace(".dae.cached", ""))
+            if not os.path.exists(path) or os.path.getmtime(path) < os.path.getmtime(archive):
+                _unpack_member(zf, member, path, archive)
+            parts = member.split("/")
+            folder = parts[2] if len(parts) > 3 else "."
+            name = os.path.basename(path)[: -len(".pmd")]
+            out.append(Model(path=path, catalog=folder, name=name,
+                             category="/".join(parts[2:-1]), creator=CREATOR,
+                             license=LICENSE))
     return out
 
 

@@ -70,3 +70,18 @@ def test_every_pmd_of_0ad_data_loads(tmp_path):
             path.write_bytes(zf.read(member))
             V, F = load_mesh(path)
             assert len(F) and F.max() < len(V) and np.isfinite(V).all(), member
+
+
+def test_meshes_spreads_a_sample_evenly_and_names_each_by_folder(tmp_path):
+    names = [f"art/meshes/{folder}/m{i:02d}.dae.cached.pmd"
+             for folder in ("gaia", "props") for i in range(5)] + ["art/other/not_a.pmd.txt"]
+    archive = fake_archive(tmp_path / "public.zip", names)
+    everything = zero_ad.meshes(cache=str(tmp_path / "all"), archive=archive)
+    assert [m.name for m in everything] == [f"m{i:02d}" for i in range(5)] * 2
+    assert [m.catalog for m in everything] == ["gaia"] * 5 + ["props"] * 5
+    some = zero_ad.meshes(3, cache=str(tmp_path / "all"), archive=archive)
+    assert [(m.catalog, m.name) for m in some] == [("gaia", "m00"), ("gaia", "m03"),
+                                                   ("props", "m01")]
+    assert os.path.isfile(some[2].path) and some[2].path.endswith("props/m01.pmd")
+    with pytest.raises(InputError, match="count must be at least 1"):
+        zero_ad.meshes(0, archive=archive)
