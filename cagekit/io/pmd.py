@@ -104,8 +104,9 @@ def read_pmd(path: str | os.PathLike) -> PmdModel:
     ------
     MeshFileError
         Naming the file: missing, empty, not PMD (magic, version), truncated or longer
-        than its header says, a face index out of range, a non-finite position, or a
-        skinned version-2 file.
+        than its header says, a face index out of range, a non-finite value (position,
+        normal, texture coordinate, bone weight, rest state, prop point), a bone index
+        beyond the file's bones, a negative bone weight, or a skinned version-2 file.
 
     Examples
     --------
@@ -140,6 +141,9 @@ def _parse(data: bytes, path) -> PmdModel:
     reader = _Reader(data, 12)
     n = reader.u32()
     k = reader.u32() if version >= 4 else 1
+    if (44 + 8 * k) * n > len(data):  # each vertex takes 44 + 8 k bytes
+        raise MeshFileError(f"says it has {n} vertices of {k} UV set(s) each, more than "
+                            f"its {len(data)} bytes hold", path)
     record = np.dtype([("position", "<f4", 3), ("normal", "<f4", 3), ("uv", "<f4", (k, 2)),
                        ("bones", "u1", 4), ("weights", "<f4", 4)])
     vertices = reader.array(record, n)
@@ -153,15 +157,20 @@ def _parse(data: bytes, path) -> PmdModel:
     V = vertices["position"].astype(np.float64)
     _check_geometry(V, faces, path)
     bones = vertices["bones"].astype(np.int64)
+    weights = vertices["weights"].astype(np.float64)
+    _check_skin(bones, weights, bone_count, path)
     if version == 2 and bone_count and (bones != _NO_BONE).any():
         raise MeshFileError("is a skinned PMD of version 2 (positions relative to their "
                             "bones); versions 3 and 4 are read", path)
-    return PmdModel(version=version, vertices=V, faces=faces,
-                    normals=vertices["normal"].astype(np.float64),
-                    uv=vertices["uv"].astype(np.float64), bones=bones,
-                    weights=vertices["weights"].astype(np.float64),
-                    rest_translation=rest[:, :3], rest_rotation=rest[:, 3:],
-                    prop_points=props)
+    normals, uv = vertices["normal"].astype(np.float64), vertices["uv"].astype(np.float64)
+    props_array = np.array([np.r_[p.translation, p.rotation] for p in props]).reshape(-1, 7)
+    for what, values in (("normal of vertex", normals),
+                         ("texture coordinates of vertex", uv.reshape(n, 2 * k)),
+                         ("rest state of bone", rest), ("prop point", props_array)):
+        _check_finite(what, values, path)
+    return PmdModel(version=version, vertices=V, faces=faces, normals=normals, uv=uv,
+                    bones=bones, weights=weights, rest_translation=rest[:, :3],
+                    rest_rotation=rest[:, 3:], prop_points=props)
 
 
 def _check_geometry(V: np.ndarray, F: np.ndarray, path) -> None:
@@ -173,6 +182,30 @@ def _check_geometry(V: np.ndarray, F: np.ndarray, path) -> None:
         i = int(np.argmax((F >= len(V)).any(axis=1)))
         raise MeshFileError(f"face {i} (0-based) refers to vertices {F[i].tolist()}; "
                             f"there are {len(V)} vertices", path)
+
+
+def _check_finite(what: str, values: np.ndarray, path) -> None:
+    """A one-line error naming the first row of ``values`` holding NaN or inf."""
+    bad = ~np.isfinite(values).all(axis=1)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise MeshFileError(f"{what} {i} (0-based) is not finite: {values[i].tolist()}", path)
+
+
+def _check_skin(bones: np.ndarray, weights: np.ndarray, bone_count: int, path) -> None:
+    """Bone indices within the file's bones (or 255: none; the bone count itself is the
+    format's bind-shape bone) and finite, non-negative weights."""
+    _check_finite("bone weight of vertex", weights, path)
+    bad = ((bones > bone_count) & (bones != _NO_BONE)).any(axis=1)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise MeshFileError(f"vertex {i} (0-based) names bones {bones[i].tolist()}; the "
+                            f"file has {bone_count}", path)
+    bad = (weights < 0).any(axis=1)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise MeshFileError(f"vertex {i} (0-based) has a negative bone weight: "
+                            f"{weights[i].tolist()}", path)
 
 
 class _Reader:

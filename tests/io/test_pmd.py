@@ -79,9 +79,32 @@ def test_uv_sets_bones_rest_states_and_prop_points_are_kept(tmp_path):
     (pmd_bytes(V=np.array([[0, 0, np.nan], [1, 0, 0], [0, 1, 0]], np.float32),
                faces=[(0, 1, 2)]), "not finite"),
     (pmd_bytes(2, bones=[(0, 255, 255, 255)] * 4, rest=[(0,) * 7]), "version 2"),
+    (pmd_bytes()[:16] + struct.pack("<I", 2**32 - 1) + pmd_bytes()[20:], "UV set"),
+    (pmd_bytes(bones=[(2, 255, 255, 255)] * 4, rest=[(0,) * 7]), "names bones"),
+    (pmd_bytes(rest=[(np.inf, 0, 0, 0, 0, 0, 1)]), "rest state of bone 0"),
+    (pmd_bytes(props=[(b"p", (0, np.nan, 0), (0, 0, 0, 1), 255)]), "prop point 0"),
 ])
 def test_bad_files_are_one_line_errors_naming_them(tmp_path, data, match):
     expect_error(write(tmp_path / "bad.pmd", data), loader=read_pmd, match=match)
+
+
+def test_bad_skin_normals_and_uvs_are_refused_naming_the_vertex(tmp_path):
+    good = pmd_bytes(uv_sets=2)
+    offset = 12 + 8  # header, vertex and UV-set counts: vertex 0's record starts here
+    cases = {offset + 12: ("normal of vertex 0", np.float32(np.nan)),
+             offset + 24 + 8: ("texture coordinates of vertex 0", np.float32(np.inf)),
+             offset + 24 + 16 + 4: ("bone weight of vertex 0", np.float32(np.nan)),
+             offset + 24 + 16 + 8: ("negative bone weight", np.float32(-5.0))}
+    for i, (at, (match, value)) in enumerate(cases.items()):
+        data = good[:at] + value.tobytes() + good[at + 4:]
+        expect_error(write(tmp_path / f"b{i}.pmd", data), loader=read_pmd, match=match)
+
+
+def test_the_bind_shape_bone_index_is_accepted(tmp_path):
+    """The format reserves the index equal to the bone count (two of the game's files)."""
+    model = read_pmd(write(tmp_path / "b.pmd", pmd_bytes(bones=[(1, 255, 255, 255)] * 4,
+                                                       rest=[(0, 0, 0, 0, 0, 0, 1)])))
+    assert (model.bones[:, 0] == 1).all()
 
 
 def test_a_truncated_body_whose_header_agrees_is_reported_as_truncated(tmp_path):
