@@ -98,7 +98,8 @@ def fit_cage(ctx: click.Context, mesh: str, out: str, faces: int, method: str, c
                     **report.as_dict()})
     else:
         ratio = report.volume_ratio
-        ratio_text = "n/a" if ratio is None else f"{ratio:.3f}"
-        click.echo(f"wrote {out}: {report.faces}-face cage, every check passed; volume "
-                   f"{ratio_text} x the {report.volume_reference}'s, largest distance "
-                   f"{report.max_distance:.4f} x the diagonal ({seconds:.2f} s)")
+        volume = ("the shape has no volume" if ratio is None else
+                  f"volume {ratio:.3f} x the {report.volume_reference}'s")
+        click.echo(f"wrote {out}: {report.faces}-face cage, every check passed; {volume}, "
+                   f"largest distance {report.max_distance:.4f} x the diagonal "
+                   f"({seconds:.2f} s)")

@@ -327,6 +327,14 @@ def test_fit_cage_template_text_output(tmp_path):
     assert cv.shape == (42, 3) and cf.shape == (80, 3)
 
 
+def test_fit_cage_of_a_flat_shape_says_it_has_no_volume(tmp_path):
+    flat = tmp_path / "tri.obj"
+    flat.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    result = cagekit("fit-cage", flat, "-o", tmp_path / "cage.obj", "--method", "template")
+    assert result.returncode == 0, result.stderr
+    assert "the shape has no volume" in result.stdout and "none's" not in result.stdout
+
+
 def test_fit_cage_template_below_its_face_count_is_refused(tmp_path):
     # the template has 80 faces: a smaller budget cannot be met, so nothing is written
     out = tmp_path / "cage.obj"
