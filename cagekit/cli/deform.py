@@ -207,8 +207,9 @@ def deform(ctx: click.Context, source: str, target: str, out: str, method: str,
             result = _run(src, tgt, cage, pairs, model, refine, options, bar_callback(bar))
         except InputError as exc:
             raise _blamed(exc, source, target, cage_path, landmarks) from None
+    figures = _checked_figures(src, tgt, result, source, out)
     write(out, result.vertices, result.faces)
-    _report(src, tgt, result, outputs, source, target, up, as_json)
+    _report(src, tgt, result, figures, outputs, source, target, up, as_json)
 
 
 def _check_options(ctx, source, target, out, method, cage_path, save_cage, symmetry,
@@ -301,7 +302,19 @@ def _blamed(exc, source, target, cage_path, landmarks):
     return InputError(exc.problem, blamed)
 
 
-def _report(src, tgt, result, outputs, source, target, up, as_json):
+def _checked_figures(src, tgt, result, source, out):
+    """The result's figures, computed before anything is written: a result that cannot be
+    measured (its surface collapsed to no area, as when one vertex of the source lies
+    orders of magnitude beyond the rest) is refused, naming the source."""
+    try:
+        return _deform_figures(src, tgt, result)
+    except InputError as exc:
+        raise InputError(f"the deformed shape is degenerate ({exc.problem}), so nothing "
+                         f"was written to {out}; check its coordinates (a vertex far "
+                         "from the rest?)", source) from None
+
+
+def _report(src, tgt, result, figures, outputs, source, target, up, as_json):
     """Write the cages and the preview, then print the figures (a line or JSON)."""
     from cagekit import io
 
@@ -309,7 +322,6 @@ def _report(src, tgt, result, outputs, source, target, up, as_json):
     if save_cage is not None:
         io.save_mesh(save_cage, result.cage_v, result.cage_f)
         io.save_mesh(_deformed_cage_path(save_cage), result.deformed_cage_v, result.cage_f)
-    figures = _deform_figures(src, tgt, result)
     dcot = figures["dcotlap_x1e3"]
     method = result.method
     caption = (f"{method}: CD x1e2 = {figures['cd_x1e2']:.3f}"
