@@ -3,6 +3,7 @@
 import json
 import subprocess
 import sys
+import warnings
 
 import numpy as np
 import pytest
@@ -302,3 +303,30 @@ def test_refine_weighs_the_cage_term_lightly_unless_told(run_dir, pair):
     source_ref = deform_with_model(model, *src, *tgt, points=256, refine=True,
                                    options=DeformOptions(max_evaluations=10, reference="source"))
     assert source_ref.weights["cage"] == 1.0
+
+
+def test_a_result_worse_than_box_scaling_is_warned_about():
+    from cagekit.cage.shapes import box_cage
+    from cagekit.errors import CagekitWarning
+    from cagekit_learn.inference import warn_if_worse_than_scaling
+
+    V, F = box_cage(divisions=4)
+    target = V * [1.0, 2.0, 1.0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no warning: the result is the scaled source
+        assert not warn_if_worse_than_scaling(V, F, target, F, target)
+    bent = target + np.c_[np.zeros(len(V)), np.zeros(len(V)), 0.3 * V[:, 1] ** 2]
+    with pytest.warns(CagekitWarning, match=r"bounding box .*Chamfer x1e2 [\d.]+ against"):
+        assert warn_if_worse_than_scaling(V, F, target, F, bent)
+
+
+def test_the_model_warns_on_a_pair_that_scaling_serves_better(run_dir):
+    """A sphere onto one twice as tall: scaling is exact, the vase model is not."""
+    from cagekit.cage.shapes import icosphere_cage
+    from cagekit.errors import CagekitWarning
+
+    V, F = icosphere_cage(2)
+    model, _ = load_model(run_dir)
+    with pytest.warns(CagekitWarning, match="unlike the shapes the model was trained on"):
+        result = deform_with_model(model, V, F, V * [1.0, 2.0, 1.0], F, points=256)
+    assert result.method == "learned"
