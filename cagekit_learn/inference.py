@@ -7,7 +7,9 @@ be grown to enclose it, and then the pair is deformed by :func:`cagekit.deform` 
 fitted cage, with one warning); the full-resolution source is then bound to the cage with
 the core's exact MVC (:func:`cagekit.bind`, float64) and moved with the deformed cage.
 ``refine=True`` then runs the per-pair optimisation of :func:`cagekit.deform` on the
-predicted cage, starting from its predicted deformation.
+predicted cage, starting from its predicted deformation. Without it, a result further from
+the target than the source's box scaled onto it is warned about
+(:func:`warn_if_worse_than_scaling`).
 
 A model trained with a fixed source (``cagekit train --fixed-source``) carries the
 template's normalised samples (``model.fixed_source``); :func:`predict_fixed_source` and
