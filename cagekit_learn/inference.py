@@ -292,7 +292,7 @@ def warn_if_worse_than_scaling(Vs_n: ArrayLike, Fs: ArrayLike | None, Vt_n: Arra
     than their targets, 2-4x the per-pair Chamfer distance and above plain scaling). The
     target is at hand, so the result is compared with the source's bounding box scaled onto
     the target's (``cagekit deform --method scale``): Chamfer distances of 2,048 samples
-    each, in the unit frames (about 25 ms for both).
+    each, in the unit frames (10-20 ms for both on 2 cores).
 
     Parameters
     ----------
