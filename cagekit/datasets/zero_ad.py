@@ -78,16 +78,13 @@ def furniture(kinds: Iterable[str] = tuple(FURNITURE), cache: str = "out/0ad",
     InputError
         The archive is missing (the package is not installed) or lacks a model.
     """
-    if not os.path.isfile(archive):
-        raise InputError("missing: install Debian's 0ad-data (apt-get install 0ad-data)",
-                         archive)
+    _require(archive)
     wanted = [(kind, name, member) for kind in kinds for name, member in FURNITURE.get(kind, ())]
     out = []
     with zipfile.ZipFile(archive) as zf:
         for kind, name, member in wanted:
             path = os.path.join(cache, os.path.basename(member).replace(".dae.cached", ""))
-            if not os.path.exists(path) or os.path.getmtime(path) < os.path.getmtime(archive):
-                _unpack_member(zf, member, path, archive)
+            _unpack_member(zf, member, path, archive)
             out.append((kind, Model(path=path, catalog="0ad-data", name=name,
                                     category=kind, creator=CREATOR, license=LICENSE)))
     return out
@@ -119,9 +116,7 @@ def meshes(count: int | None = None, cache: str = "out/0ad/all",
     InputError
         The archive is missing (the package is not installed), or ``count`` < 1.
     """
-    if not os.path.isfile(archive):
-        raise InputError("missing: install Debian's 0ad-data (apt-get install 0ad-data)",
-                         archive)
+    _require(archive)
     if count is not None and count < 1:
         raise InputError(f"count must be at least 1, got {count}")
     out = []
@@ -131,8 +126,7 @@ def meshes(count: int | None = None, cache: str = "out/0ad/all",
             members = members[::max(1, len(members) // count)][:count]
         for member in members:
             path = os.path.join(cache, member.replace(".dae.cached", ""))
-            if not os.path.exists(path) or os.path.getmtime(path) < os.path.getmtime(archive):
-                _unpack_member(zf, member, path, archive)
+            _unpack_member(zf, member, path, archive)
             parts = member.split("/")
             folder = parts[2] if len(parts) > 3 else "."
             name = os.path.basename(path)[: -len(".pmd")]
@@ -142,8 +136,18 @@ def meshes(count: int | None = None, cache: str = "out/0ad/all",
     return out
 
 
+def _require(archive: str) -> None:
+    """An InputError that says how to install the package, when its archive is missing."""
+    if not os.path.isfile(archive):
+        raise InputError("missing: install Debian's 0ad-data (apt-get install 0ad-data)",
+                         archive)
+
+
 def _unpack_member(zf: zipfile.ZipFile, member: str, path: str, archive: str) -> None:
-    """Write one member of the archive to ``path``, atomically."""
+    """Write one member of the archive to ``path``, atomically, unless a copy at least as
+    new as the archive is there."""
+    if os.path.exists(path) and os.path.getmtime(path) >= os.path.getmtime(archive):
+        return
     try:
         data = zf.read(member)
     except KeyError:
