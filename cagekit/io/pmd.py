@@ -174,10 +174,7 @@ def _parse(data: bytes, path) -> PmdModel:
 
 
 def _check_geometry(V: np.ndarray, F: np.ndarray, path) -> None:
-    bad = ~np.isfinite(V).all(axis=1)
-    if bad.any():
-        i = int(np.argmax(bad))
-        raise MeshFileError(f"vertex {i} (0-based) is not finite: {V[i].tolist()}", path)
+    _check_finite("vertex", V, path)
     if len(F) and F.max() >= len(V):
         i = int(np.argmax((F >= len(V)).any(axis=1)))
         raise MeshFileError(f"face {i} (0-based) refers to vertices {F[i].tolist()}; "
