@@ -32,7 +32,6 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
-from cagekit.cage import vertex_components
 from cagekit.errors import InputError
 from cagekit.geometry import (
     as_faces,
@@ -43,6 +42,7 @@ from cagekit.geometry import (
     surface_laplacian,
 )
 from cagekit.geometry.frame import Frame
+from cagekit.geometry.parts import vertex_parts
 from cagekit.geometry.sampling import sample_surface
 
 __all__ = ["Evaluation", "chamfer", "point_chamfer", "conformal_distortion", "dcotlap",
@@ -349,8 +349,9 @@ def part_nonaffinity(V_src: ArrayLike, F_src: ArrayLike, V_out: ArrayLike,
                      min_vertices: int = MIN_PART_VERTICES) -> dict:
     """How far each part of a deformed shape is from an affine map of itself.
 
-    For each connected component of the source with at least ``min_vertices`` vertices
-    (the whole shape when none has), the RMS residual of the least-squares affine fit
+    For each part of the source (:func:`cagekit.geometry.parts.vertex_parts`: connected
+    components, pieces split at UV or normal seams joined) with at least ``min_vertices``
+    vertices (the whole shape when none has), the RMS residual of the least-squares affine fit
     ``V_out ~ [V_src 1] A`` over the part's vertices, divided by the deformed part's
     bounding-box diagonal. Any affine map of the whole shape, or of each part on its own,
     scores 0; a bend scores about the bend's sag over the part's size.
@@ -387,7 +388,7 @@ def part_nonaffinity(V_src: ArrayLike, F_src: ArrayLike, V_out: ArrayLike,
     """
 
     Vs, Vo, F = _paired(V_src, F_src, V_out)
-    labels = vertex_components(len(Vs), F)
+    labels = vertex_parts(Vs, F)
     counts = np.bincount(labels[labels >= 0])
     parts = [np.flatnonzero(labels == c) for c in np.flatnonzero(counts >= min_vertices)]
     if not parts:

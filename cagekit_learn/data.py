@@ -35,11 +35,11 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike
 
-from cagekit.cage import vertex_components
 from cagekit.datasets import synthetic as _synthetic
 from cagekit.errors import CagekitWarning, InputError
-from cagekit.geometry import as_count, as_faces
+from cagekit.geometry import as_count, as_faces, as_vertices
 from cagekit.geometry.frame import Frame
+from cagekit.geometry.parts import vertex_parts
 from cagekit.geometry.sampling import sample_surface
 from cagekit.io import SUPPORTED_MESH_EXTENSIONS, load_shape
 from cagekit.io.files import atomic_output
@@ -74,9 +74,10 @@ MESH_EXTENSIONS = SUPPORTED_MESH_EXTENSIONS
 CACHE_DIRNAME = ".cagekit-cache"
 """Name of the default cache folder, inside the collection's root."""
 
-CACHE_FORMAT = 2
+CACHE_FORMAT = 3
 """Version of the cache layout; a cache of another version is rebuilt (2: the samples'
-part labels, :attr:`ShapeCollection.parts`, are cached with them)."""
+part labels, :attr:`ShapeCollection.parts`, are cached with them; 3: parts join vertices
+at the same position, :func:`cagekit.geometry.parts.vertex_parts`)."""
 
 _SAMPLES_FILE = "samples.npz"
 _MANIFEST_FILE = "manifest.json"
@@ -115,20 +116,21 @@ def _sample_shape(V, F, points: int, seed: int) -> tuple[np.ndarray, np.ndarray]
         P = sample_surface(Vn, F, points, seed=seed, fill=True)
         return np.ascontiguousarray(P, dtype=np.float32), np.full(len(P), -1, np.int32)
     P, faces = sample_surface(Vn, F, points, seed=seed, fill=True, return_faces=True)
-    return np.ascontiguousarray(P, dtype=np.float32), sample_parts(len(V), F, faces)
+    return np.ascontiguousarray(P, dtype=np.float32), sample_parts(V, F, faces)
 
 
-def sample_parts(n_vertices: int, F: ArrayLike, faces: ArrayLike,
+def sample_parts(V: ArrayLike, F: ArrayLike, faces: ArrayLike,
                  min_vertices: int = MIN_PART_VERTICES) -> np.ndarray:
-    """The part of each surface sample: the connected component of the face it lies on.
+    """The part of each surface sample: the part of the face it lies on.
 
-    Parts are as ``cagekit deform``'s part-affinity term takes them: face components of
-    at least ``min_vertices`` vertices.
+    Parts are as ``cagekit deform``'s part-affinity term takes them
+    (:func:`cagekit.geometry.parts.vertex_parts`: connected components, vertices at the
+    same position joined) of at least ``min_vertices`` vertices.
 
     Parameters
     ----------
-    n_vertices : int
-        Vertex count of the mesh.
+    V : (v, 3) array_like of float
+        The mesh's vertices.
     F : (m, 3) array_like of int
         Its triangles.
     faces : (n,) array_like of int
@@ -144,22 +146,24 @@ def sample_parts(n_vertices: int, F: ArrayLike, faces: ArrayLike,
 
     Examples
     --------
+    >>> V = np.arange(21.0).reshape(7, 3)
     >>> F = [[0, 1, 2], [3, 4, 5], [4, 5, 6]]  # a triangle, then two triangles
-    >>> sample_parts(7, F, [0, 1, 2, 0], min_vertices=4).tolist()
+    >>> sample_parts(V, F, [0, 1, 2, 0], min_vertices=4).tolist()
     [-1, 1, 1, -1]
     """
-    F = as_faces(F, int(n_vertices))
-    corners = F[np.asarray(faces, dtype=np.int64), 0]  # a face's vertices share its component
-    return _vertex_parts(int(n_vertices), F, int(min_vertices))[corners]
+    V = as_vertices(V, "V")
+    F = as_faces(F, len(V))
+    corners = F[np.asarray(faces, dtype=np.int64), 0]  # a face's vertices share its part
+    return _vertex_parts(V, F, int(min_vertices))[corners]
 
 
-def _vertex_parts(n_vertices: int, F, min_vertices: int = MIN_PART_VERTICES) -> np.ndarray:
-    """The part of each vertex, (v,) int32: its face component when that has at least
-    ``min_vertices`` vertices, else -1 (also on no face, and for a point cloud)."""
-    F = as_faces(F, n_vertices)
+def _vertex_parts(V, F, min_vertices: int = MIN_PART_VERTICES) -> np.ndarray:
+    """The part of each vertex, (v,) int32: its part (:func:`vertex_parts`) when that has
+    at least ``min_vertices`` vertices, else -1 (also on no face, and for a point cloud)."""
+    F = as_faces(F, len(V))
     if not len(F):
-        return np.full(n_vertices, -1, dtype=np.int32)
-    labels = vertex_components(n_vertices, F)
+        return np.full(len(V), -1, dtype=np.int32)
+    labels = vertex_parts(V, F)
     sizes = np.bincount(labels[labels >= 0])
     big = (labels >= 0) & (sizes[np.maximum(labels, 0)] >= min_vertices)
     return np.where(big, labels, -1).astype(np.int32)
@@ -375,7 +379,7 @@ class ShapeCollection:
         names = [path.relative_to(root).as_posix() for path in paths]
         collection = cls(names, np.stack([Frame.of(V).to_unit(V)[rows] for V in shapes]
                                          ).astype(np.float32),
-                         np.stack([_vertex_parts(len(V), F)[rows] for V, F in meshes]))
+                         np.stack([_vertex_parts(V, F)[rows] for V, F in meshes]))
         collection.rows, collection.vertex_count = rows, n
         return collection
 

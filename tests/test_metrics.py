@@ -390,6 +390,19 @@ def test_each_part_moved_by_its_own_affine_map_scores_zero():
     assert part_nonaffinity(V, F, out)["worst"] < 1e-12
 
 
+def test_parts_split_at_seams_are_measured_as_one():
+    # every face with vertices of its own (a seam along every edge, as files with UVs
+    # have): still two parts, each moved by an affine map of its own scores 0
+    V, F = two_parts()
+    out = V.copy()
+    ball = np.arange(len(V)) >= 164
+    out[ball] = V[ball] @ np.diag([2.0, 0.5, 1.0]) + 3.0
+    Vs, Fs = V[F.ravel()], np.arange(3 * len(F)).reshape(-1, 3)
+    split = part_nonaffinity(Vs, Fs, out[F.ravel()])
+    assert split["parts"] == 2
+    assert split["worst"] < 1e-12
+
+
 def test_a_bent_bar_scores_the_residual_of_its_parabola():
     # z += k x^2 on x in [0, 4]: the best affine fit leaves k (x^2 - linear fit), whose
     # RMS over the stations is computed directly here; over the bent bar's diagonal

@@ -12,7 +12,8 @@ diagonal (exact triangle-to-triangle distance). Faces that touch in the source (
 on a seat, a leg glued to a rail, two faces of one corner) never count, nor do two parts
 that already pass through each other in the source (a leg pushed into its seat, which the
 variation may push a little deeper). The counted pairs
-are reported by part: the source's connected components through its faces, numbered in the
+are reported by part: the source's parts (:func:`cagekit.geometry.parts.face_parts`:
+connected components through its faces, pieces split at seams joined), numbered in the
 order of their first face; a part may cross itself (the front and back legs of one
 side-frame brought together). :func:`cagekit.batch.amplify.amplify` rejects a variation
 with crossing parts.
@@ -25,8 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from cagekit.cage import face_components
 from cagekit.errors import InputError
+from cagekit.geometry.parts import face_parts
 
 __all__ = ["TOUCH_GAP", "Crossings", "part_crossings"]
 
@@ -46,7 +47,7 @@ class Crossings:
         crosses itself), in increasing order. Parts are numbered from 1 in the order of
         their first face in the source's face list.
     parts : int
-        The number of parts of the source (connected components through its faces).
+        The number of parts of the source (:func:`cagekit.geometry.parts.face_parts`).
     """
 
     pairs: tuple[tuple[int, int], ...]
@@ -118,7 +119,7 @@ def part_crossings(V_src: ArrayLike, F_src: ArrayLike, V_out: ArrayLike,
     (((1, 2),), 0)
     """
     Vs, Vo, F = _checked(V_src, F_src, V_out)
-    labels = face_components(len(Vs), F) if len(F) else np.zeros(0, dtype=np.int64)
+    labels = face_parts(Vs, F) if len(F) else np.zeros(0, dtype=np.int64)
     parts = int(labels.max()) + 1 if len(labels) else 0
     if parts == 0:
         return Crossings((), parts)

@@ -36,7 +36,6 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 
-from cagekit.cage import vertex_components
 from cagekit.coords import GreenBinding, bind
 from cagekit.coords.green import FaceTerms
 from cagekit.deformation import terms as losses
@@ -45,6 +44,7 @@ from cagekit.deformation.solver import minimise
 from cagekit.errors import InputError
 from cagekit.geometry import cotangent_laplacian, surface_laplacian, vertex_neighborhoods
 from cagekit.geometry.alignment import box_scale, partial_box_scale
+from cagekit.geometry.parts import vertex_parts
 from cagekit.geometry.sampling import sample_surface, subset
 from cagekit.metrics import MIN_PART_VERTICES
 from cagekit.typed import Faces, Floats, Vertices
@@ -251,12 +251,13 @@ def box_factors(Vs_n: ArrayLike, Vt_n: ArrayLike, target_kind: str) -> Floats:
 
 
 def _part_term(Vs_n, Fs, W_vertices):
-    """The part-affinity quadratic form of the source's parts (face components of at least
-    ``MIN_PART_VERTICES`` vertices), or None when it has fewer than two."""
+    """The part-affinity quadratic form of the source's parts
+    (:func:`cagekit.geometry.parts.vertex_parts`, seams joined) of at least
+    ``MIN_PART_VERTICES`` vertices, or None when it has fewer than two."""
 
     if not len(Fs):
         return None
-    parts = losses.part_bases(Vs_n, vertex_components(len(Vs_n), Fs), MIN_PART_VERTICES)
+    parts = losses.part_bases(Vs_n, vertex_parts(Vs_n, Fs), MIN_PART_VERTICES)
     if len(parts.bases) < 2:
         return None
     return losses.part_affinity_matrix(W_vertices, parts)

@@ -11,7 +11,8 @@ indices and empty input; none returns NaN. One concept a module:
 - :mod:`~cagekit.geometry.rotations`: the polar factor, ARAP's per-vertex rotations;
 - :mod:`~cagekit.geometry.sampling`: seeded surface samples and subsets;
 - :mod:`~cagekit.geometry.frame`: a shape's unit frame (:class:`~cagekit.geometry.frame.Frame`);
-- :mod:`~cagekit.geometry.alignment`: box and similarity alignments.
+- :mod:`~cagekit.geometry.alignment`: box and similarity alignments;
+- :mod:`~cagekit.geometry.parts`: the parts of a shape, pieces split at seams joined.
 
 The names of the first four are re-exported here (``from cagekit.geometry import
 as_shape``).

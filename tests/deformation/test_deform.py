@@ -369,6 +369,20 @@ def test_the_parts_of_a_multi_part_source_stay_affine():
     assert "parts" in kept.losses and "parts" not in bent.losses  # the term ran or not
 
 
+def test_a_source_split_at_its_seams_keeps_its_parts_affine():
+    # a file that repeats vertices along every edge (UV seams) has the same 17 parts: the
+    # part term runs on them, and no part bends
+    from cagekit.datasets import synthetic
+
+    (V, F), target = synthetic.chair(seed=2), synthetic.chair(seed=3)
+    Vs, Fs = V[F.ravel()], np.arange(3 * len(F)).reshape(-1, 3)
+    kept = cagekit.deform(Vs, Fs, *target, options=cagekit.DeformOptions(symmetry="x"))
+    figures = evaluate(Vs, Fs, *target, kept.vertices)
+    assert "parts" in kept.losses
+    assert figures.parts == 17
+    assert figures.part_nonaffinity_worst < 0.005
+
+
 def test_nricp_refuses_vertices_on_no_face_in_one_line():
     # trimesh's nricp_amberg fails deep inside scipy on such a mesh (a shape mismatch, or
     # a singular system); cagekit names the problem instead

@@ -139,7 +139,7 @@ def two_spheres_and_a_crumb():
 def test_each_sample_gets_the_component_of_its_face():
     V, F = two_spheres_and_a_crumb()
     faces = np.array([0, len(F) // 2 + 1, len(F) - 1, 3])
-    assert sample_parts(len(V), F, faces).tolist() == [0, 1, -1, 0]
+    assert sample_parts(V, F, faces).tolist() == [0, 1, -1, 0]
 
 
 def test_folder_samples_carry_their_parts_through_the_cache(tmp_path, monkeypatch):
@@ -170,7 +170,9 @@ def test_a_cache_without_parts_is_rebuilt_with_the_same_samples(tmp_path):
     cache = tmp_path / data.CACHE_DIRNAME
     manifest = (cache / "manifest.json").read_text()
     # as the previous version wrote it: format 1, no parts
-    (cache / "manifest.json").write_text(manifest.replace('"format": 2', '"format": 1'))
+    assert f'"format": {data.CACHE_FORMAT}' in manifest
+    (cache / "manifest.json").write_text(manifest.replace(f'"format": {data.CACHE_FORMAT}',
+                                                          '"format": 1'))
     with np.load(cache / "samples.npz") as npz:
         old = {k: npz[k] for k in ("token", "names", "points")}
     np.savez(cache / "samples.npz", **old)
