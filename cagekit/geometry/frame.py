@@ -17,13 +17,19 @@ from numpy.typing import ArrayLike
 from cagekit.errors import InputError
 from cagekit.geometry import as_vertices
 
-__all__ = ["Frame", "MIN_EXTENT", "bounding_box", "bounding_box_diagonal"]
+__all__ = ["Frame", "MAX_SPREAD", "MIN_EXTENT", "bounding_box", "bounding_box_diagonal",
+           "check_no_stray_vertex"]
 
 #: smallest extent a shape may have: below it, differences of coordinates are subnormal
 #: numbers and lose digits (``2**52`` times the smallest normal float64, about 1e-292)
 MIN_EXTENT = float(np.finfo(np.float64).tiny * 2.0**52)
 
 UNITS = ("half_extent", "diagonal")
+
+#: a vertex farther than this many times the typical vertex's distance from the shape's
+#: median point is a stray (:func:`check_no_stray_vertex`): in the shape's unit frame the
+#: rest would shrink below float32's resolution
+MAX_SPREAD = 1e6
 
 
 def _vertices(V) -> np.ndarray:
@@ -132,6 +138,53 @@ def bounding_box(V: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
                          "float64 (coordinates below about 1e-292 apart)")
     # 0.5 lo + 0.5 hi: bit for bit 0.5 (lo + hi), without its overflow near 1e308
     return 0.5 * lo + 0.5 * hi, extent
+
+
+def check_no_stray_vertex(V: ArrayLike, name: str | None = None) -> None:
+    """Refuse a shape whose bounding box a few far-away vertices make.
+
+    A vertex more than :data:`MAX_SPREAD` times as far from the vertices' median point as
+    the median vertex is, is a stray (a typo in a file, an unset coordinate): the shape's
+    unit frame would be its box, and every other vertex would collapse into a speck.
+
+    Parameters
+    ----------
+    V : (n, 3) array_like of float
+    name : str, optional
+        Starts the message (``"the target"``), as in :meth:`Frame.of`.
+
+    Raises
+    ------
+    InputError
+        Such a vertex, naming its index and how far it is; not raised when half of the
+        vertices or more coincide (no typical distance to compare with).
+
+    Examples
+    --------
+    >>> V = np.random.default_rng(0).random((50, 3))
+    >>> check_no_stray_vertex(V)
+    >>> V[7] = 1e38
+    >>> try:
+    ...     check_no_stray_vertex(V)
+    ... except InputError as exc:
+    ...     print(exc.problem[:37])
+    vertex 7 lies 3e+38 times as far from
+    """
+    V = _vertices(V)
+    with np.errstate(over="ignore", invalid="ignore"):
+        offset = V - np.median(V, axis=0)
+        largest = float(np.abs(offset).max())
+        if not 0.0 < largest < np.inf:  # all at the median; an overflow is Frame.of's
+            return
+        distance = np.linalg.norm(offset / largest, axis=1)  # no overflow in the squares
+    typical = float(np.median(distance))
+    far = int(np.argmax(distance))
+    if typical > 0.0 and not distance[far] <= MAX_SPREAD * typical:
+        ratio = distance[far] / typical
+        start = f"{name}: " if name else ""
+        raise InputError(f"{start}vertex {far} lies {ratio:.1g} times as far from the shape's "
+                         f"median point as its typical vertex (more than {MAX_SPREAD:.0e}): "
+                         "a stray vertex makes the shape's box, and the rest would collapse")
 
 
 def bounding_box_diagonal(extent: ArrayLike) -> float:

@@ -61,17 +61,22 @@ def test_points_whose_coordinates_overflow_are_refused(tmp_path):
     assert not (tmp_path / "o.xyz").exists()
 
 
-def test_a_source_vertex_far_beyond_the_rest_is_refused_before_anything_is_written(tmp_path):
-    """One vertex at 1e38: the other vertices collapse in the unit frame, the result has
-    no area. Refused naming the source, and no output left (it was written before)."""
+FAR = ("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 1e38 0 0\n"
+       "f 1 3 2\nf 1 2 4\nf 2 3 4\nf 3 1 4\nf 2 5 4\n")
+
+
+@pytest.mark.parametrize("role", ["source", "target"])
+def test_a_vertex_far_beyond_the_rest_is_refused_before_anything_is_written(tmp_path, role):
+    """One vertex at 1e38: the other vertices would collapse in the unit frame (as a
+    source, the result had no area; as a target, the source was blown up 1e38 wide and
+    the command exited 0). Refused naming the file and the vertex; no output."""
     far = tmp_path / "far.obj"
-    far.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 1e38 0 0\n"
-                   "f 1 3 2\nf 1 2 4\nf 2 3 4\nf 3 1 4\nf 2 5 4\n")
+    far.write_text(FAR)
+    chair = os.path.join(ROOT, "data", "example", "chair_target.obj")
     out = tmp_path / "o.obj"
-    result = cagekit("deform", far, os.path.join(ROOT, "data", "example", "chair_target.obj"),
-                     "-o", out)
-    assert_bad_input(result)
-    assert "SOURCE (1st argument)" in result.stderr and "degenerate" in result.stderr
+    result = cagekit("deform", *((far, chair) if role == "source" else (chair, far)), "-o", out)
+    assert_bad_input(result, str(far))
+    assert "vertex 4" in result.stderr and "stray" in result.stderr
     assert not out.exists()
 
 

@@ -2,9 +2,11 @@
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from cagekit.errors import InputError
-from cagekit.geometry.frame import Frame
+from cagekit.geometry.frame import Frame, check_no_stray_vertex
 
 
 def test_frame_of_a_shape_and_round_trip():
@@ -61,3 +63,30 @@ def test_bounding_box_refuses_what_float64_cannot_resolve():
         bounding_box([[-1e308, 0, 0], [1e308, 0, 0]])
     with pytest.raises(InputError, match="coincide"):
         bounding_box([[5.0, 5, 5], [5.0, 5, 5]])
+
+
+def test_a_stray_vertex_is_refused_naming_it():
+    V = np.random.default_rng(0).random((200, 3))
+    check_no_stray_vertex(V)
+    V[17] = [1e38, 0, 0]
+    with pytest.raises(InputError, match=r"^the target: vertex 17 lies"):
+        check_no_stray_vertex(V, name="the target")
+
+
+@settings(max_examples=30, deadline=None)
+@given(scale=st.floats(1e-200, 1e200), shift=st.floats(-1e3, 1e3), seed=st.integers(0, 99))
+def test_the_stray_check_ignores_scale_and_position(scale, shift, seed):
+    # a detailed head on a long thin pole (1e4 x its spread) is no stray; 1e7 is
+    rng = np.random.default_rng(seed)
+    V = rng.normal(size=(300, 3))
+    V[0] = [1e4, 0, 0]
+    check_no_stray_vertex(V * scale + shift * scale)
+    V[0] = [1e7, 0, 0]
+    with pytest.raises(InputError, match="vertex 0"):
+        check_no_stray_vertex(V * scale + shift * scale)
+
+
+def test_no_stray_when_most_vertices_coincide():
+    V = np.zeros((10, 3))
+    V[9] = 1e30
+    check_no_stray_vertex(V)  # no typical distance: left to Frame.of and the callers
