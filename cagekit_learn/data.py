@@ -76,8 +76,8 @@ CACHE_DIRNAME = ".cagekit-cache"
 
 CACHE_FORMAT = 3
 """Version of the cache layout; a cache of another version is rebuilt (2: the samples'
-part labels, :attr:`ShapeCollection.parts`, are cached with them; 3: parts join vertices
-at the same position, :func:`cagekit.geometry.parts.vertex_parts`)."""
+part labels, :attr:`ShapeCollection.parts`, are cached with them; 3: parts join pieces
+split at seams, :func:`cagekit.geometry.parts.vertex_parts`)."""
 
 _SAMPLES_FILE = "samples.npz"
 _MANIFEST_FILE = "manifest.json"
@@ -124,8 +124,8 @@ def sample_parts(V: ArrayLike, F: ArrayLike, faces: ArrayLike,
     """The part of each surface sample: the part of the face it lies on.
 
     Parts are as ``cagekit deform``'s part-affinity term takes them
-    (:func:`cagekit.geometry.parts.vertex_parts`: connected components, vertices at the
-    same position joined) of at least ``min_vertices`` vertices.
+    (:func:`cagekit.geometry.parts.vertex_parts`: connected components, faces that share
+    an edge by position joined across seams) of at least ``min_vertices`` vertices.
 
     Parameters
     ----------
@@ -257,9 +257,9 @@ class ShapeCollection:
         on its own (bounding-box centre at the origin, largest half-extent 1), so every
         point lies in ``[-1, 1]^3``.
     parts : (N, P) int32 ndarray
-        The part of each sample (:func:`sample_parts`: the connected component of the face
-        it was drawn from; in correspondence, of its vertex), for the part-affinity
-        training term; -1 on no part: a component of fewer than
+        The part of each sample (:func:`sample_parts`: the part of the face it was drawn
+        from, :func:`cagekit.geometry.parts.vertex_parts`; in correspondence, of its
+        vertex), for the part-affinity training term; -1 on no part: a part of fewer than
         :data:`cagekit.metrics.MIN_PART_VERTICES` vertices, a point cloud, samples given
         without labels.
     rows : (P,) int64 ndarray or None

@@ -156,8 +156,8 @@ def check_no_stray_vertex(V: ArrayLike, name: str | None = None) -> None:
     Raises
     ------
     InputError
-        Such a vertex, naming its index and how far it is; not raised when half of the
-        vertices or more coincide (no typical distance to compare with).
+        Such a vertex, naming its index and how far it is. Nothing is compared when the
+        typical distance is zero (most vertices at one point).
 
     Examples
     --------
@@ -173,14 +173,13 @@ def check_no_stray_vertex(V: ArrayLike, name: str | None = None) -> None:
     V = _vertices(V)
     with np.errstate(over="ignore", invalid="ignore"):
         offset = V - np.median(V, axis=0)
-        largest = float(np.abs(offset).max())
-        if not 0.0 < largest < np.inf:  # all at the median; an overflow is Frame.of's
-            return
-        distance = np.linalg.norm(offset / largest, axis=1)  # no overflow in the squares
+        # hypot squares nothing: no overflow for a far stray, no underflow for the rest
+        distance = np.hypot(np.hypot(offset[:, 0], offset[:, 1]), offset[:, 2])
     typical = float(np.median(distance))
     far = int(np.argmax(distance))
     if typical > 0.0 and not distance[far] <= MAX_SPREAD * typical:
-        ratio = distance[far] / typical
+        with np.errstate(over="ignore"):
+            ratio = distance[far] / typical
         start = f"{name}: " if name else ""
         raise InputError(f"{start}vertex {far} lies {ratio:.1g} times as far from the shape's "
                          f"median point as its typical vertex (more than {MAX_SPREAD:.0e}): "

@@ -103,7 +103,12 @@ def _seam_edges(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     P = position.reshape(-1)[F]
     ends = np.sort(np.stack([P, np.roll(P, -1, axis=1)], axis=-1).reshape(-1, 2), axis=1)
     _, side = np.unique(ends, axis=0, return_inverse=True)
-    return side.reshape(-1, 3).astype(np.int64)
+    side = side.reshape(-1).astype(np.int64)
+    # a side of no length (a degenerate face's) is no edge: each is its own node, so two
+    # pieces touching at one point with such faces there stay apart
+    point = ends[:, 0] == ends[:, 1]
+    side[point] = side.max() + 1 + np.arange(int(point.sum()))
+    return side.reshape(-1, 3)
 
 
 def _components(n: int, F: np.ndarray, sides: np.ndarray) -> np.ndarray:

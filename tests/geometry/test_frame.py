@@ -86,6 +86,14 @@ def test_the_stray_check_ignores_scale_and_position(scale, shift, seed):
         check_no_stray_vertex(V * scale + shift * scale)
 
 
+@pytest.mark.parametrize("far", [1e150, 1e200, 1.7e308])
+def test_a_stray_at_any_distance_is_refused(far):
+    V = np.random.default_rng(1).random((50, 3))
+    V[7] = [far, 0, 0]
+    with pytest.raises(InputError, match="vertex 7"):
+        check_no_stray_vertex(V)
+
+
 def test_no_stray_when_most_vertices_coincide():
     V = np.zeros((10, 3))
     V[9] = 1e30

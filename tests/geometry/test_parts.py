@@ -53,6 +53,13 @@ def test_pieces_that_share_a_position_but_no_edge_stay_apart():
     assert face_parts(V, [[0, 1, 2], [3, 4, 5]]).tolist() == [0, 1]
 
 
+def test_degenerate_faces_at_a_shared_point_do_not_join_pieces():
+    # two pieces touching at the origin, each with a face of no area there
+    V = [[0.0, 0, 0], [0, 0, 0], [1, 0, 0], [0, 0, 0], [0, 0, 0], [-1, 0, 0], [0, 1, 0],
+         [0, -1, 0]]
+    assert face_parts(V, [[0, 1, 2], [0, 2, 6], [3, 4, 5], [3, 5, 7]]).tolist() == [0, 0, 1, 1]
+
+
 def test_parts_are_numbered_in_the_order_of_their_first_face():
     V, F = two_boxes()
     assert face_parts(V, np.vstack([F[12:], F[:12]])).tolist() == [0] * 12 + [1] * 12
