@@ -37,7 +37,7 @@ from cagekit.deformation import CageProblem, DeformOptions, DeformResult, deform
 from cagekit.errors import CageError, CagekitWarning, InputError
 from cagekit.geometry import as_shape
 from cagekit.geometry.alignment import box_scale
-from cagekit.geometry.frame import Frame, check_no_stray_vertex
+from cagekit.geometry.frame import pair_frames
 from cagekit.geometry.sampling import sample_surface
 from cagekit.metrics import chamfer
 from cagekit.typed import Vertices
@@ -128,9 +128,7 @@ def _predicted(model, Vs, Fs, Vt, Ft, points, seed):
     in them, and the two cages in the source's and the target's unit frames.
     """
     points = 1024 if points is None else int(points)
-    fs, ft = Frame.of(Vs, name="the source"), Frame.of(Vt, name="the target")
-    check_no_stray_vertex(Vs, name="the source")
-    check_no_stray_vertex(Vt, name="the target")
+    fs, ft = pair_frames(Vs, Vt)
     Vs_n, Vt_n = fs.to_unit(Vs), ft.to_unit(Vt)
     fixed = getattr(model, "fixed_source", None)
     config = getattr(model, "config", None)

@@ -27,7 +27,7 @@ from cagekit.deformation.problem import (
 )
 from cagekit.errors import InputError
 from cagekit.geometry import as_shape, as_vertices
-from cagekit.geometry.frame import Frame, check_no_stray_vertex
+from cagekit.geometry.frame import Frame, pair_frames
 
 __all__ = ["DeformResult", "deform"]
 
@@ -218,9 +218,7 @@ def deform(V_src: ArrayLike, F_src: ArrayLike | None, V_tgt: ArrayLike,
     term_weights(options.weights, landmarks, options.symmetry, options.reference)
     Vs, Fs = as_shape((as_vertices(V_src, "the source"), F_src), name="source")
     Vt, Ft = as_shape((as_vertices(V_tgt, "the target"), F_tgt), name="target")
-    fs, ft = Frame.of(Vs, name="the source"), Frame.of(Vt, name="the target")
-    check_no_stray_vertex(Vs, name="the source")
-    check_no_stray_vertex(Vt, name="the target")
+    fs, ft = pair_frames(Vs, Vt)
     Vs_n, Vt_n = fs.to_unit(Vs), ft.to_unit(Vt)
     result = DeformResult(vertices=Vs, faces=Fs, method=method, source_frame=fs,
                           target_frame=ft)

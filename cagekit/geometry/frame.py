@@ -18,7 +18,7 @@ from cagekit.errors import InputError
 from cagekit.geometry import as_vertices
 
 __all__ = ["Frame", "MAX_SPREAD", "MIN_EXTENT", "bounding_box", "bounding_box_diagonal",
-           "check_no_stray_vertex"]
+           "check_no_stray_vertex", "pair_frames"]
 
 #: smallest extent a shape may have: below it, differences of coordinates are subnormal
 #: numbers and lose digits (``2**52`` times the smallest normal float64, about 1e-292)
@@ -184,6 +184,37 @@ def check_no_stray_vertex(V: ArrayLike, name: str | None = None) -> None:
         raise InputError(f"{start}vertex {far} lies {ratio:.1g} times as far from the shape's "
                          f"median point as its typical vertex (more than {MAX_SPREAD:.0e}): "
                          "a stray vertex makes the shape's box, and the rest would collapse")
+
+
+def pair_frames(Vs: ArrayLike, Vt: ArrayLike) -> tuple[Frame, Frame]:
+    """The paper's unit frames of a source and a target, each checked for a stray vertex.
+
+    Parameters
+    ----------
+    Vs, Vt : (n, 3), (k, 3) array_like of float
+
+    Returns
+    -------
+    (Frame, Frame)
+        The source's and the target's (:meth:`Frame.of`).
+
+    Raises
+    ------
+    InputError
+        As :meth:`Frame.of` and :func:`check_no_stray_vertex`, the message starting
+        "the source" or "the target".
+
+    Examples
+    --------
+    >>> fs, ft = pair_frames([[0, 0, 0], [2, 2, 2]], [[0, 0, 0], [1, 4, 1]])
+    >>> fs.scale, ft.scale
+    (1.0, 2.0)
+    """
+    frames = []
+    for V, name in ((Vs, "the source"), (Vt, "the target")):
+        frames.append(Frame.of(V, name=name))
+        check_no_stray_vertex(V, name=name)
+    return frames[0], frames[1]
 
 
 def bounding_box_diagonal(extent: ArrayLike) -> float:
