@@ -119,7 +119,7 @@ def part_crossings(V_src: ArrayLike, F_src: ArrayLike, V_out: ArrayLike,
     (((1, 2),), 0)
     """
     Vs, Vo, F = _checked(V_src, F_src, V_out)
-    labels = face_parts(Vs, F) if len(F) else np.zeros(0, dtype=np.int64)
+    labels = face_parts(Vs, F)
     parts = int(labels.max()) + 1 if len(labels) else 0
     if parts == 0:
         return Crossings((), parts)

@@ -55,14 +55,7 @@ def face_parts(vertices: ArrayLike, faces: ArrayLike) -> Ints:
     [0, 0, 1]
     """
     V = as_vertices(vertices, "vertices")
-    F = as_faces(faces, len(V))
-    if not len(F):
-        return np.zeros(0, dtype=np.int64)
-    labels = _components(len(V), F, _seam_edges(V, F))
-    _, first, compact = np.unique(labels, return_index=True, return_inverse=True)
-    rank = np.empty(len(first), dtype=np.int64)
-    rank[np.argsort(first)] = np.arange(len(first))
-    return rank[compact.reshape(-1)]
+    return _face_parts(V, as_faces(faces, len(V)))
 
 
 def vertex_parts(vertices: ArrayLike, faces: ArrayLike) -> Ints:
@@ -92,8 +85,19 @@ def vertex_parts(vertices: ArrayLike, faces: ArrayLike) -> Ints:
     V = as_vertices(vertices, "vertices")
     F = as_faces(faces, len(V))
     labels = np.full(len(V), -1, dtype=np.int64)
-    labels[F.ravel()] = np.repeat(face_parts(V, F), 3)
+    labels[F.ravel()] = np.repeat(_face_parts(V, F), 3)
     return labels
+
+
+def _face_parts(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """:func:`face_parts` of checked arrays."""
+    if not len(F):
+        return np.zeros(0, dtype=np.int64)
+    labels = _components(len(V), F, _seam_edges(V, F))
+    _, first, compact = np.unique(labels, return_index=True, return_inverse=True)
+    rank = np.empty(len(first), dtype=np.int64)
+    rank[np.argsort(first)] = np.arange(len(first))
+    return rank[compact.reshape(-1)]
 
 
 def _seam_edges(V: np.ndarray, F: np.ndarray) -> np.ndarray:
