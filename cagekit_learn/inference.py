@@ -8,8 +8,9 @@ fitted cage, with one warning); the full-resolution source is then bound to the 
 the core's exact MVC (:func:`cagekit.bind`, float64) and moved with the deformed cage.
 ``refine=True`` then runs the per-pair optimisation of :func:`cagekit.deform` on the
 predicted cage, starting from its predicted deformation. Without it, a result further from
-the target than the source's box scaled onto it is warned about
-(:func:`warn_if_worse_than_scaling`).
+the target than the source's box scaled onto it is replaced by that scaling, with one
+warning (:func:`warn_if_worse_than_scaling`; ``fallback=False`` keeps the network's
+result and still warns).
 
 A model trained with a fixed source (``cagekit train --fixed-source``) carries the
 template's normalised samples (``model.fixed_source``); :func:`predict_fixed_source` and
@@ -212,19 +213,25 @@ def deform_with_model(model: NeuralCages, V_src: ArrayLike, F_src: ArrayLike | N
     progress : callable, optional
         When refining (or falling back), as :func:`cagekit.deform` calls it.
     fallback : bool, default True
-        What to do with a predicted cage that cannot be used
+        What to do when the network's answer is not fit to hand on, each time with one
+        warning that says why. A predicted cage that cannot be used
         (:func:`cagekit_learn.cage_repair.check_predicted_cage`: it intersects itself,
         or leaves source points outside even when grown): True deforms by per-pair
         optimisation with a fitted cage instead (:func:`cagekit.deform`, ``options``
-        with method ``"cage"``) and says so in one warning; False raises.
+        with method ``"cage"``); False raises. Without ``refine``, a result further
+        from the target than the source's bounding box scaled onto the target's
+        (:func:`warn_if_worse_than_scaling`): True returns that scaling instead (the
+        deformed cage is then the predicted source cage scaled alike, which MVC moves
+        the source with exactly; Green coordinates keep angles and would not), False
+        keeps the network's result.
 
     Returns
     -------
     DeformResult
-        ``method`` is ``"learned"`` or ``"learned+refine"`` (``"cage"`` after a fall
-        back); vertices in the target's frame and units; the cages in the source's and
-        target's frames: the cage used, which is the predicted one grown about the
-        source's centre when it left points outside.
+        ``method`` is ``"learned"`` or ``"learned+refine"`` (``"cage"`` or ``"scale"``
+        after a fall back); vertices in the target's frame and units; the cages in the
+        source's and target's frames: the cage used, which is the predicted one grown
+        about the source's centre when it left points outside.
 
     Raises
     ------
@@ -272,7 +279,11 @@ def deform_with_model(model: NeuralCages, V_src: ArrayLike, F_src: ArrayLike | N
     else:
         binding = bind(Vs_n, cage_n, cage_f, method=_coords_of(model), check=False)
         moved_n = binding.deform(deformed_n)
-        warn_if_worse_than_scaling(Vs_n, Fs, Vt_n, Ft, moved_n, seed=seed)
+        if warn_if_worse_than_scaling(Vs_n, Fs, Vt_n, Ft, moved_n, seed=seed,
+                                      instead=fallback) and fallback:
+            scale = box_scale(Vs_n, Vt_n)
+            moved_n, deformed_n = Vs_n * scale, cage_n * scale
+            result.method = "scale"
         result.vertices = ft.to_world(moved_n)
         result.cage_v, result.cage_f = fs.to_world(cage_n), binding.cage_f
         result.deformed_cage_v = ft.to_world(deformed_n)
@@ -284,7 +295,7 @@ def deform_with_model(model: NeuralCages, V_src: ArrayLike, F_src: ArrayLike | N
 
 def warn_if_worse_than_scaling(Vs_n: ArrayLike, Fs: ArrayLike | None, Vt_n: ArrayLike,
                                Ft: ArrayLike | None, moved_n: ArrayLike,
-                               seed: int = 0) -> bool:
+                               seed: int = 0, instead: bool = False) -> bool:
     """Warn when a learned result is further from the target than box scaling is.
 
     A network that has not seen shapes like these can add a deformation the pair does not
@@ -306,6 +317,9 @@ def warn_if_worse_than_scaling(Vs_n: ArrayLike, Fs: ArrayLike | None, Vt_n: Arra
         The learned result, in the target's unit frame.
     seed : int, default 0
         Of the samples.
+    instead : bool, default False
+        The caller hands on the scaling instead (:func:`deform_with_model`'s
+        ``fallback``): the warning says so.
 
     Returns
     -------
@@ -330,7 +344,8 @@ def warn_if_worse_than_scaling(Vs_n: ArrayLike, Fs: ArrayLike | None, Vt_n: Arra
         f"the model's result is further from the target than the source's bounding box "
         f"scaled onto the target's (Chamfer x1e2 {100 * learned:.3f} against "
         f"{100 * scaling:.3f}): the pair may be unlike the shapes the model was trained "
-        "on; refining (--refine) optimises from the prediction"), stacklevel=3)
+        f"on; {'the scaling is returned instead' if instead else 'the result is kept'}, "
+        "and refining (--refine) optimises from the prediction"), stacklevel=3)
     return True
 
 

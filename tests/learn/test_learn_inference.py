@@ -65,7 +65,7 @@ def test_train_command_writes_checkpoint_and_log(run_dir):
 def test_prediction_deforms_the_full_mesh_with_the_core_binding(run_dir, pair):
     model, payload = load_model(run_dir)
     src, tgt = io.load_shape(pair[0]), io.load_shape(pair[1])
-    result = deform_with_model(model, *src, *tgt, points=256, seed=5)
+    result = deform_with_model(model, *src, *tgt, points=256, seed=5, fallback=False)
     assert result.method == "learned"
     assert result.vertices.shape == src[0].shape and np.isfinite(result.vertices).all()
     # the same thing by hand: samples, one forward pass, the core's float64 MVC
@@ -103,12 +103,14 @@ def test_refine_starts_from_the_prediction_and_improves_it(run_dir, pair):
 
 def test_deform_model_command(run_dir, pair, tmp_path, capsys):
     out = tmp_path / "out.obj"
-    code, stdout, _ = _cli(["deform", str(pair[0]), str(pair[1]), "--model",
-                            str(run_dir / "checkpoint.pt"), "-o", str(out), "--save-cage",
-                            str(tmp_path / "cage.obj"), "--json"], capsys)
+    code, stdout, stderr = _cli(["deform", str(pair[0]), str(pair[1]), "--model",
+                                 str(run_dir / "checkpoint.pt"), "-o", str(out), "--save-cage",
+                                 str(tmp_path / "cage.obj"), "--json"], capsys)
     assert code == 0
     figures = json.loads(stdout)
-    assert figures["method"] == "learned" and figures["cd"] > 0
+    # a few steps of training do worse than box scaling: the command hands that on, saying so
+    assert figures["method"] == "scale" and figures["cd"] > 0
+    assert "the scaling is returned instead" in stderr
     V, F = io.load_mesh(out)
     assert V.shape == io.load_shape(pair[0])[0].shape
     cage_v, cage_f = io.load_mesh(tmp_path / "cage.obj")
@@ -262,7 +264,7 @@ def test_a_predicted_cage_that_leaves_the_source_out_is_grown_before_use(run_dir
         return centre["c"] + 0.7 * (cage - centre["c"]), deformed
 
     _predicting(monkeypatch, shrink)
-    result = deform_with_model(model, *src, *tgt, points=256)
+    result = deform_with_model(model, *src, *tgt, points=256, fallback=False)
     assert result.method == "learned"
     cage_n = result.source_frame.to_unit(result.cage_v)
     source_n = result.source_frame.to_unit(src[0])
@@ -333,6 +335,16 @@ def test_the_model_warns_on_a_pair_that_scaling_serves_better(run_dir):
 
     V, F = icosphere_cage(2)
     model, _ = load_model(run_dir)
-    with pytest.warns(CagekitWarning, match="unlike the shapes the model was trained on"):
+    with pytest.warns(CagekitWarning, match="unlike the shapes .* the result is kept"):
+        kept = deform_with_model(model, V, F, V * [1.0, 2.0, 1.0], F, points=256,
+                                 fallback=False)
+    assert kept.method == "learned"
+    assert not np.allclose(kept.vertices, V * [1.0, 2.0, 1.0], atol=1e-3)
+    # by default the scaling is handed on instead, and its cage moves the source there
+    with pytest.warns(CagekitWarning, match="the scaling is returned instead"):
         result = deform_with_model(model, V, F, V * [1.0, 2.0, 1.0], F, points=256)
-    assert result.method == "learned"
+    assert result.method == "scale"
+    assert np.allclose(result.vertices, V * [1.0, 2.0, 1.0], atol=1e-12)
+    assert np.allclose(result.cage_v, kept.cage_v)
+    assert np.allclose(bind(V, result.cage_v, result.cage_f).deform(result.deformed_cage_v),
+                       result.vertices, atol=1e-9)
