@@ -43,7 +43,8 @@ class DeformResult:
         The source's faces (empty for a point-cloud source).
     method : str
         ``"cage"``, ``"scale"`` or ``"nricp"`` (``"learned"`` or ``"learned+refine"`` from
-        :func:`cagekit_learn.inference.deform_with_model`).
+        :func:`cagekit_learn.inference.deform_with_model`, or ``"cage"`` or ``"scale"``
+        where it handed on a fall back).
     cage_v, cage_f : (k, 3) float64 and (c, 3) int64, or None
         The source cage in the source's frame (``cage`` only).
     deformed_cage_v : (k, 3) float64 or None
