@@ -8,8 +8,9 @@ fitted cage, with one warning); the full-resolution source is then bound to the 
 the core's exact MVC (:func:`cagekit.bind`, float64) and moved with the deformed cage.
 ``refine=True`` then runs the per-pair optimisation of :func:`cagekit.deform` on the
 predicted cage, starting from its predicted deformation. Without it, a result further from
-the target than the source's box scaled onto it is replaced by that scaling, with one
-warning (:func:`warn_if_worse_than_scaling`; ``fallback=False`` keeps the network's
+the target than the predicted cage scaled as the source's box scales onto the target's is
+replaced by that scaling, with one warning (:func:`warn_if_worse_than_scaling`;
+``scaling_fallback=False``, ``cagekit deform --keep-prediction``, keeps the network's
 result and still warns).
 
 A model trained with a fixed source (``cagekit train --fixed-source``) carries the
@@ -184,7 +185,7 @@ def deform_with_model(model: NeuralCages, V_src: ArrayLike, F_src: ArrayLike | N
                       points: int | None = None, seed: int = 0, refine: bool = False,
                       options: DeformOptions | None = None,
                       progress: Callable[[int, int], object] | None = None,
-                      fallback: bool = True) -> DeformResult:
+                      fallback: bool = True, scaling_fallback: bool = True) -> DeformResult:
     """Deform a source to take a target's shape with a trained model.
 
     Parameters
@@ -213,17 +214,19 @@ def deform_with_model(model: NeuralCages, V_src: ArrayLike, F_src: ArrayLike | N
     progress : callable, optional
         When refining (or falling back), as :func:`cagekit.deform` calls it.
     fallback : bool, default True
-        What to do when the network's answer is not fit to hand on, each time with one
-        warning that says why. A predicted cage that cannot be used
+        What to do with a predicted cage that cannot be used
         (:func:`cagekit_learn.cage_repair.check_predicted_cage`: it intersects itself,
         or leaves source points outside even when grown): True deforms by per-pair
         optimisation with a fitted cage instead (:func:`cagekit.deform`, ``options``
-        with method ``"cage"``); False raises. Without ``refine``, a result further
-        from the target than the source's bounding box scaled onto the target's
-        (:func:`warn_if_worse_than_scaling`): True returns that scaling instead (the
-        deformed cage is then the predicted source cage scaled alike, which MVC moves
-        the source with exactly; Green coordinates keep angles and would not), False
-        keeps the network's result.
+        with method ``"cage"``) and says so in one warning; False raises.
+    scaling_fallback : bool, default True
+        Without ``refine``: what to do with a result further from the target than the
+        box scaling (:func:`warn_if_worse_than_scaling`, one warning either way). The
+        scaling is the predicted source cage scaled per axis as the source's bounding
+        box maps onto the target's, the source moved by it: with MVC exactly the source
+        scaled (``cagekit deform --method scale``), with Green coordinates, which keep
+        angles, near it. True hands that on instead (method ``"scale"``, the scaled
+        cage as the deformed cage); False keeps the network's result.
 
     Returns
     -------
@@ -279,10 +282,12 @@ def deform_with_model(model: NeuralCages, V_src: ArrayLike, F_src: ArrayLike | N
     else:
         binding = bind(Vs_n, cage_n, cage_f, method=_coords_of(model), check=False)
         moved_n = binding.deform(deformed_n)
+        scaled_cage = cage_n * box_scale(Vs_n, Vt_n)
+        scaled_n = binding.deform(scaled_cage)
         if warn_if_worse_than_scaling(Vs_n, Fs, Vt_n, Ft, moved_n, seed=seed,
-                                      instead=fallback) and fallback:
-            scale = box_scale(Vs_n, Vt_n)
-            moved_n, deformed_n = Vs_n * scale, cage_n * scale
+                                      instead=scaling_fallback,
+                                      scaled_n=scaled_n) and scaling_fallback:
+            moved_n, deformed_n = scaled_n, scaled_cage
             result.method = "scale"
         result.vertices = ft.to_world(moved_n)
         result.cage_v, result.cage_f = fs.to_world(cage_n), binding.cage_f
@@ -295,7 +300,8 @@ def deform_with_model(model: NeuralCages, V_src: ArrayLike, F_src: ArrayLike | N
 
 def warn_if_worse_than_scaling(Vs_n: ArrayLike, Fs: ArrayLike | None, Vt_n: ArrayLike,
                                Ft: ArrayLike | None, moved_n: ArrayLike,
-                               seed: int = 0, instead: bool = False) -> bool:
+                               seed: int = 0, instead: bool = False,
+                               scaled_n: ArrayLike | None = None) -> bool:
     """Warn when a learned result is further from the target than box scaling is.
 
     A network that has not seen shapes like these can add a deformation the pair does not
@@ -319,7 +325,11 @@ def warn_if_worse_than_scaling(Vs_n: ArrayLike, Fs: ArrayLike | None, Vt_n: Arra
         Of the samples.
     instead : bool, default False
         The caller hands on the scaling instead (:func:`deform_with_model`'s
-        ``fallback``): the warning says so.
+        ``scaling_fallback``): the warning says so.
+    scaled_n : (n, 3) array_like of float, optional
+        The scaling to compare with, in the target's unit frame; default the source
+        scaled per axis onto the target's bounding box
+        (:func:`cagekit.geometry.alignment.box_scale`).
 
     Returns
     -------
@@ -335,7 +345,7 @@ def warn_if_worse_than_scaling(Vs_n: ArrayLike, Fs: ArrayLike | None, Vt_n: Arra
     False
     """
     Vs_n, Vt_n = np.asarray(Vs_n, dtype=np.float64), np.asarray(Vt_n, dtype=np.float64)
-    scaled = Vs_n * box_scale(Vs_n, Vt_n)
+    scaled = Vs_n * box_scale(Vs_n, Vt_n) if scaled_n is None else scaled_n
     learned = chamfer(moved_n, Fs, Vt_n, Ft, n_samples=2048, seed=seed)
     scaling = chamfer(scaled, Fs, Vt_n, Ft, n_samples=2048, seed=seed)
     if not learned > scaling:
@@ -373,6 +383,8 @@ class ModelDeformer:
         A checkpoint or run folder (:func:`cagekit_learn.train.load_model`).
     refine : bool, default False
         As :func:`deform_with_model`.
+    scaling_fallback : bool, default True
+        As :func:`deform_with_model`.
 
     Examples
     --------
@@ -380,12 +392,14 @@ class ModelDeformer:
     >>> result = deformer(V_src, F_src, V_tgt, F_tgt, seed=0)  # doctest: +SKIP
     """
 
-    def __init__(self, path: str, refine: bool = False):
+    def __init__(self, path: str, refine: bool = False, scaling_fallback: bool = True):
         self.path, self.refine = path, bool(refine)
+        self.scaling_fallback = bool(scaling_fallback)
         self._model: tuple[NeuralCages, int] | None = None
 
     def __getstate__(self):
-        return {"path": self.path, "refine": self.refine, "_model": None}
+        return {"path": self.path, "refine": self.refine,
+                "scaling_fallback": self.scaling_fallback, "_model": None}
 
     def __call__(self, V_src: ArrayLike, F_src: ArrayLike | None, V_tgt: ArrayLike,
                  F_tgt: ArrayLike | None = None, seed: int = 0) -> DeformResult:
@@ -395,4 +409,4 @@ class ModelDeformer:
             self._model = (model, int(payload.get("config", {}).get("points", 1024)))
         model, points = self._model
         return deform_with_model(model, V_src, F_src, V_tgt, F_tgt, points=points, seed=seed,
-                                 refine=self.refine)
+                                 refine=self.refine, scaling_fallback=self.scaling_fallback)

@@ -154,6 +154,10 @@ def _load_landmark_pair(src_path, tgt_path):
 @click.option("--refine", is_flag=True,
               help="With --model: then optimise the predicted cage per pair (as --method "
                    "cage, started from the prediction).")
+@click.option("--keep-prediction", is_flag=True,
+              help="With --model: write the network's result even where the predicted "
+                   "cage scaled onto TARGET's box comes nearer TARGET (by default that "
+                   "scaling is written instead, with a warning).")
 @preview_up_option
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
               help="Seed of the samples (and of the fitted cage).")
@@ -165,7 +169,8 @@ def deform(ctx: click.Context, source: str, target: str, out: str, method: str,
            symmetry: str,
            landmarks: tuple[str, str] | None, weights: dict[str, float], reference: str,
            target_kind: str, coords: str, model_path: str | None, refine: bool,
-           preview: str | None, up: str, seed: int, as_json: bool) -> None:
+           keep_prediction: bool, preview: str | None, up: str, seed: int,
+           as_json: bool) -> None:
     """Deform SOURCE so that it takes TARGET's shape, keeping SOURCE's detail.
 
     SOURCE is a mesh (or a point cloud, whose points move); TARGET a mesh or a point
@@ -192,6 +197,8 @@ def deform(ctx: click.Context, source: str, target: str, out: str, method: str,
     if model_path and target_kind != "full":
         raise click.UsageError("--target-kind partial applies to the per-pair optimisation "
                                "only, not to --model")
+    if keep_prediction and (not model_path or refine):
+        raise click.UsageError("--keep-prediction applies to --model without --refine")
     from cagekit.deformation import DeformOptions
 
     model = _load_model(model_path) if model_path else None
@@ -204,7 +211,8 @@ def deform(ctx: click.Context, source: str, target: str, out: str, method: str,
                       enabled=progress_enabled() and method == "cage"
                       and (model is None or refine)) as bar:
         try:
-            result = _run(src, tgt, cage, pairs, model, refine, options, bar_callback(bar))
+            result = _run(src, tgt, cage, pairs, model, refine, options, bar_callback(bar),
+                          keep_prediction)
         except InputError as exc:
             raise _blamed(exc, source, target, cage_path, landmarks) from None
     figures = _checked_figures(src, tgt, result, source, out)
@@ -266,7 +274,7 @@ def _load_inputs(source, target, out, cage_path, landmarks, allow_outside=False)
     return src, tgt, cage, pairs, write
 
 
-def _run(src, tgt, cage, pairs, model, refine, options, progress):
+def _run(src, tgt, cage, pairs, model, refine, options, progress, keep_prediction=False):
     """The deformation: per-pair (``cagekit.deform``) or by the model."""
     import warnings
 
@@ -278,7 +286,8 @@ def _run(src, tgt, cage, pairs, model, refine, options, progress):
 
         net, points = model
         return deform_with_model(net, *src, *tgt, points=points, seed=options.seed,
-                                 refine=refine, options=options, progress=progress)
+                                 refine=refine, options=options, progress=progress,
+                                 scaling_fallback=not keep_prediction)
     # a given cage was checked by _load_inputs, with its file name in the messages
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", OutsideCageWarning)

@@ -250,7 +250,8 @@ def test_predict_fixed_source_and_deform_with_model(run_dir, shapes):
         predict_fixed_source(NeuralCages(ModelConfig(**TINY_MODEL)), Vp_n[rows])
 
     Vt, Ft = io.load_mesh(shapes["template"])
-    result = deform_with_model(model, Vt, Ft, Vp, Fp, points=POINTS, fallback=False)
+    result = deform_with_model(model, Vt, Ft, Vp, Fp, points=POINTS,
+                               scaling_fallback=False)
     assert result.vertices.shape == Vt.shape and np.isfinite(result.vertices).all()
     # the source cage comes back in the template's own frame: the cage file
     assert np.allclose(result.cage_v, io.load_mesh(shapes["cage"])[0], atol=1e-4)

@@ -65,7 +65,8 @@ def test_train_command_writes_checkpoint_and_log(run_dir):
 def test_prediction_deforms_the_full_mesh_with_the_core_binding(run_dir, pair):
     model, payload = load_model(run_dir)
     src, tgt = io.load_shape(pair[0]), io.load_shape(pair[1])
-    result = deform_with_model(model, *src, *tgt, points=256, seed=5, fallback=False)
+    result = deform_with_model(model, *src, *tgt, points=256, seed=5,
+                               scaling_fallback=False)
     assert result.method == "learned"
     assert result.vertices.shape == src[0].shape and np.isfinite(result.vertices).all()
     # the same thing by hand: samples, one forward pass, the core's float64 MVC
@@ -90,7 +91,8 @@ def test_prediction_deforms_the_full_mesh_with_the_core_binding(run_dir, pair):
 def test_refine_starts_from_the_prediction_and_improves_it(run_dir, pair):
     model, _ = load_model(run_dir)
     src, tgt = io.load_shape(pair[0]), io.load_shape(pair[1])
-    learned = deform_with_model(model, *src, *tgt, points=256)
+    learned = deform_with_model(model, *src, *tgt, points=256, scaling_fallback=False)
+    assert learned.method == "learned"
     refined = deform_with_model(model, *src, *tgt, points=256, refine=True,
                                 options=DeformOptions(max_evaluations=30))
     assert refined.method == "learned+refine"
@@ -112,9 +114,23 @@ def test_deform_model_command(run_dir, pair, tmp_path, capsys):
     assert figures["method"] == "scale" and figures["cd"] > 0
     assert "the scaling is returned instead" in stderr
     V, F = io.load_mesh(out)
-    assert V.shape == io.load_shape(pair[0])[0].shape
+    code, _, _ = _cli(["deform", str(pair[0]), str(pair[1]), "--method", "scale", "-o",
+                       str(tmp_path / "scaled.obj")], capsys)
+    assert code == 0  # in the target's frame and units (it is 40x larger, shifted by 7)
+    np.testing.assert_allclose(V, io.load_mesh(tmp_path / "scaled.obj")[0], atol=1e-4)
     cage_v, cage_f = io.load_mesh(tmp_path / "cage.obj")
     assert cage_v.shape == (42, 3)
+    # the deformed cage written beside it moves the source there
+    moved_cage = io.load_mesh(tmp_path / "cage_deformed.obj")[0]
+    np.testing.assert_allclose(bind(io.load_shape(pair[0])[0], cage_v, cage_f)
+                               .deform(moved_cage), V, atol=1e-3)
+    # --keep-prediction writes the network's own result (and still warns)
+    code, stdout, stderr = _cli(["deform", str(pair[0]), str(pair[1]), "--model", str(run_dir),
+                                 "--keep-prediction", "-o", str(tmp_path / "kept.obj"),
+                                 "--json"], capsys)
+    assert code == 0 and json.loads(stdout)["method"] == "learned"
+    assert "the result is kept" in stderr
+    assert json.loads(stdout)["cd"] > figures["cd"]
     code, stdout, _ = _cli(["deform", str(pair[0]), str(pair[1]), "--model", str(run_dir),
                             "--refine", "-o", str(tmp_path / "refined.obj"), "--json"],
                            capsys)
@@ -130,6 +146,8 @@ def test_deform_model_command(run_dir, pair, tmp_path, capsys):
     (["--model", "{run}", "--method", "scale"], "apply to --method cage only"),
     (["--model", "{run}", "--symmetry", "x"], "need --refine"),
     (["--model", "{run}", "--coords", "green"], "--coords green applies"),
+    (["--keep-prediction"], "--keep-prediction applies to --model without --refine"),
+    (["--model", "{run}", "--refine", "--keep-prediction"], "--keep-prediction applies"),
     (["--model", "{hollow}"], "not a usable cagekit checkpoint"),
 ])
 def test_deform_model_bad_input_exits_2_with_one_line(run_dir, pair, tmp_path, capsys,
@@ -219,8 +237,8 @@ def test_a_model_trained_with_green_coordinates_deforms_with_them(tmp_path, pair
     model, _ = load_model(str(run))
     assert model.config.coords == "green"
     result = deform_with_model(model, *io.load_shape(pair[0]), *io.load_shape(pair[1]),
-                               points=128)
-    assert np.isfinite(result.vertices).all()
+                               points=128, scaling_fallback=False)
+    assert result.method == "learned" and np.isfinite(result.vertices).all()
     # the full mesh follows the predicted cages under Green coordinates, as the core does
     Vs, Fs = io.load_shape(pair[0])
     source_n = result.source_frame.to_unit(Vs)
@@ -234,6 +252,19 @@ def test_a_model_trained_with_green_coordinates_deforms_with_them(tmp_path, pair
                                 points=128, refine=True,
                                 options=DeformOptions(coords="mvc", max_evaluations=5))
     assert refined.method == "learned+refine" and np.isfinite(refined.vertices).all()
+    # handed on as a scaling (256 samples: further than it), the result is what its cages
+    # give under Green coordinates, which keep angles: near the box scaling, not on it
+    from cagekit import deform
+    from cagekit.errors import CagekitWarning
+
+    with pytest.warns(CagekitWarning, match="the scaling is returned instead"):
+        scaled = deform_with_model(model, Vs, Fs, *io.load_shape(pair[1]), points=256)
+    assert scaled.method == "scale"
+    same = bind(Vs, scaled.cage_v, scaled.cage_f, method="green").deform(scaled.deformed_cage_v)
+    np.testing.assert_allclose(scaled.vertices, same, atol=1e-6)  # target 40x larger
+    box = deform(Vs, Fs, *io.load_shape(pair[1]), options=DeformOptions(method="scale"))
+    off = np.abs(scaled.vertices - box.vertices).max() / np.ptp(box.vertices, axis=0).max()
+    assert 1e-6 < off < 0.2
 
 
 def _predicting(monkeypatch, change):
@@ -264,7 +295,7 @@ def test_a_predicted_cage_that_leaves_the_source_out_is_grown_before_use(run_dir
         return centre["c"] + 0.7 * (cage - centre["c"]), deformed
 
     _predicting(monkeypatch, shrink)
-    result = deform_with_model(model, *src, *tgt, points=256, fallback=False)
+    result = deform_with_model(model, *src, *tgt, points=256, scaling_fallback=False)
     assert result.method == "learned"
     cage_n = result.source_frame.to_unit(result.cage_v)
     source_n = result.source_frame.to_unit(src[0])
@@ -337,7 +368,7 @@ def test_the_model_warns_on_a_pair_that_scaling_serves_better(run_dir):
     model, _ = load_model(run_dir)
     with pytest.warns(CagekitWarning, match="unlike the shapes .* the result is kept"):
         kept = deform_with_model(model, V, F, V * [1.0, 2.0, 1.0], F, points=256,
-                                 fallback=False)
+                                 scaling_fallback=False)
     assert kept.method == "learned"
     assert not np.allclose(kept.vertices, V * [1.0, 2.0, 1.0], atol=1e-3)
     # by default the scaling is handed on instead, and its cage moves the source there
