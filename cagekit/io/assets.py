@@ -298,8 +298,12 @@ def _mtllib(line, src_folder, out_path, written):
     folder (trimesh) and those that resolve them from the MTL's (Blender) both find them;
     a missing one is named relative to the output's folder. A name with spaces is one path
     when a file of that name exists beside the source. ``written`` lists the material
-    files the output names so far; a copy never replaces one of the source's own."""
+    files the output names so far; a copy never replaces one of the source's own, nor a
+    material file already in the output's folder other than those the output it replaces
+    named (another model's: an OBJ written as ``armchair.obj`` beside the ``armchair.mtl``
+    of the target it was deformed onto gets ``armchair_2.mtl``)."""
     out_folder = os.path.dirname(os.path.abspath(os.fspath(out_path)))
+    previous = set(_own_material_files(out_path)) if os.path.isfile(out_path) else set()
     names = _mtllib_names(line, src_folder)
     sources = {os.path.abspath(_beside(name, src_folder)) for name in names}
     stem = os.path.splitext(os.path.basename(os.fspath(out_path)))[0]
@@ -309,7 +313,7 @@ def _mtllib(line, src_folder, out_path, written):
         if not os.path.isfile(mtl):
             out.append(_relative(name, src_folder, out_folder))
             continue
-        copy = _free_mtl_name(out_folder, stem, mtl, sources | set(written))
+        copy = _free_mtl_name(out_folder, stem, mtl, sources | set(written), previous)
         if copy != mtl:  # else the source's own, beside the output already: valid as it is
             _copy_mtl(mtl, copy)
         written.append(copy)
@@ -328,14 +332,17 @@ def _beside(name, folder):
     return name if os.path.isabs(name) else os.path.join(folder, name)
 
 
-def _free_mtl_name(out_folder, stem, mtl, taken):
-    """``<stem>.mtl``, ``<stem>_2.mtl``...: the first that is ``mtl`` itself or is neither
-    one of the source's material files nor already named by the output (``taken``)."""
-    for k in range(1, len(taken) + 2):
+def _free_mtl_name(out_folder, stem, mtl, taken, previous=frozenset()):
+    """``<stem>.mtl``, ``<stem>_2.mtl``...: the first that is ``mtl`` itself, or is not one
+    of the source's material files or already named by the output (``taken``) and is no
+    file yet unless the output being replaced named it (``previous``)."""
+    k = 1
+    while True:
         copy = os.path.join(out_folder, f"{stem}{'' if k == 1 else f'_{k}'}.mtl")
-        if copy == mtl or copy not in taken:
+        if copy == mtl or (copy not in taken
+                           and (copy in previous or not os.path.lexists(copy))):
             return copy
-    raise AssertionError("unreachable: more names than taken ones")
+        k += 1
 
 
 _MTL_MAPS = ("map_", "bump", "disp", "decal", "refl", "norm")

@@ -285,3 +285,24 @@ def test_glb_instances_under_a_moved_parent_each_get_their_own_copy(tmp_path):
 def test_kept_extension_follows_the_formats_that_keep_an_asset():
     assert [kept_extension(n) for n in ("a.obj", "a.PLY", "a.gltf", "a.glb", "a.off")] == \
         [".obj", ".ply", ".glb", ".glb", ".obj"]
+
+
+def test_a_material_file_of_another_model_beside_the_output_is_never_replaced(textured_obj,
+                                                                                tmp_path):
+    """An output named like another model's material file (a target's ``armchair.mtl``)
+    gets ``<stem>_2.mtl``; writing the same output again replaces only its own."""
+    V, F = load_mesh(textured_obj)
+    out_folder = tmp_path / "out"
+    out_folder.mkdir()
+    theirs = out_folder / "armchair.mtl"
+    theirs.write_text("newmtl fabric\nKd 0 0 1\n")
+    (out_folder / "target.obj").write_text("mtllib armchair.mtl\nv 0 0 0\nv 1 0 0\n"
+                                           "v 0 1 0\nusemtl fabric\nf 1 2 3\n")
+    out = out_folder / "armchair.obj"
+    for _ in range(2):
+        save_deformed(out, _moved(V), F, textured_obj)
+        assert theirs.read_text() == "newmtl fabric\nKd 0 0 1\n"
+        assert _records(out, "mtllib") == ["mtllib armchair_2.mtl"]
+        assert "newmtl wood" in (out_folder / "armchair_2.mtl").read_text()
+    assert sorted(p.name for p in out_folder.glob("*.mtl")) == ["armchair.mtl",
+                                                                "armchair_2.mtl"]
