@@ -108,7 +108,7 @@ def amplify(ctx: click.Context, collection: str, out: str, variations: int | Non
     from cagekit.batch.amplify import MAX_CD, MAX_CROSSINGS, MAX_NONAFFINITY
     from cagekit.batch.amplify import amplify as run_batch
 
-    start_command(ctx)
+    start_command(ctx, keep_outputs=True)
     if (variations is None) == (pairs is None):
         raise click.UsageError("give one of --variations N and --pairs FILE|all")
     if (method == "model") != (model_path is not None):

@@ -142,9 +142,12 @@ class OneLineErrors:
         """Run the command: (exit status, the exception or None, the error line or None)."""
         import numpy as np
 
+        from cagekit.io.files import all_or_nothing
+
         try:
-            try:
-                with np.errstate(all="ignore"):  # no NumPy warnings on stderr
+            try:  # a command that fails or is interrupted leaves no output (amplify and
+                # train keep theirs as written: keep_outputs_as_written)
+                with np.errstate(all="ignore"), all_or_nothing():  # no NumPy warnings
                     rv = super().main(args, prog_name=prog, complete_var=complete_var,
                                       standalone_mode=False, **extra)
             except click.exceptions.NoArgsIsHelpError as exc:
@@ -360,11 +363,17 @@ class FiniteFloatRange(click.FloatRange):
         return number
 
 
-def start_command(ctx: click.Context) -> None:
+def start_command(ctx: click.Context, keep_outputs: bool = False) -> None:
     """Start a command: its name for the error lines, and numba's settings
     (:func:`cagekit._numba_setup.configure`) before any kernel is defined, so that the
-    processes the command starts inherit them."""
+    processes the command starts inherit them. Outputs are kept only when the command
+    completes (:func:`cagekit.io.files.all_or_nothing`), unless ``keep_outputs``: a
+    resumable batch (``amplify``, ``train``) keeps each one as it is written."""
     from cagekit._numba_setup import configure
+    from cagekit.io.files import keep_outputs_as_written
+
+    if keep_outputs:
+        keep_outputs_as_written()
 
     _CURRENT["command"] = ctx.command_path
     _ARGUMENTS.clear()

@@ -122,7 +122,7 @@ def train(ctx: click.Context, data: str, run_dir: str, epochs: int | None, batch
       cagekit train poses/ --fixed-source rest.obj --source-cage rest_cage.obj \\
           --align l2 -o runs/human
     """
-    start_command(ctx)
+    start_command(ctx, keep_outputs=True)
     try:
         from cagekit_learn.networks import ModelConfig
         from cagekit_learn.train import TrainConfig, load_source_cage

@@ -17,8 +17,8 @@ from collections.abc import Iterator, Sequence
 
 from cagekit.errors import InputError
 
-__all__ = ["atomic_output", "check_file", "distinct_tails", "extension", "one_line",
-           "output_folder", "read_bytes", "read_text"]
+__all__ = ["all_or_nothing", "atomic_output", "check_file", "distinct_tails", "extension",
+           "keep_outputs_as_written", "one_line", "output_folder", "read_bytes", "read_text"]
 
 
 def extension(path: str | os.PathLike) -> str:
@@ -135,6 +135,8 @@ def output_folder(path: str | os.PathLike) -> Iterator[str]:
         os.makedirs(target, exist_ok=True)
     except OSError as exc:
         raise InputError(f"cannot make the folder: {exc.strerror or exc}", path) from None
+    if _JOURNAL is not None:  # removed again (when empty) if all_or_nothing's block fails
+        _JOURNAL.extend((folder, None, None) for folder in reversed(missing))
     try:
         yield target
     except BaseException:
@@ -149,7 +151,85 @@ _SWEPT: set[str] = set()
 
 #: temporary names: ``.<name>.tmp-<8 hex><ext>`` (being written, locked) and
 #: ``.<name>.new-<8 hex><ext>`` (just created, about to be locked and renamed)
-_TEMPORARY = re.compile(r"^\..*\.(tmp|new)-[0-9a-f]{8}(\.[^.]*)?$")
+_TEMPORARY = re.compile(r"^\..*\.(tmp|new|old)-[0-9a-f]{8}(\.[^.]*)?$")
+
+#: the outputs :func:`atomic_output` wrote inside :func:`all_or_nothing`, in order:
+#: ``(path, backup of the file it replaced or None, the backup's locked descriptor or None)``
+_JOURNAL: list[tuple[str, str | None, int | None]] | None = None
+
+
+@contextlib.contextmanager
+def all_or_nothing() -> Iterator[None]:
+    """Keep the files the block writes only if it completes.
+
+    Every file :func:`atomic_output` writes in the block is recorded, and every folder
+    :func:`output_folder` makes; when the block raises (an error, an interrupt), each file
+    it created is removed and each one it replaced gets its earlier content back, the last
+    written first, and the folders it made are removed when empty, so a command stopped
+    half-way leaves its outputs as they were before it ran. A replaced file is kept until
+    then as a hard link (a copy where the file system has none) beside it, ``.<name>.old-
+    <8 hex digits><ext>``, locked like the temporary files, so that a process killed
+    outright leaves a stale one for the next write into that folder to remove.
+
+    Examples
+    --------
+    >>> with all_or_nothing():  # doctest: +SKIP
+    ...     save_mesh("out/result.obj", V, F)
+    ...     render_meshes([...], "out/preview.png")  # Ctrl-C here removes result.obj too
+    """
+    global _JOURNAL
+    outer, _JOURNAL = _JOURNAL, []
+    done = False
+    try:
+        yield
+        done = True
+    finally:
+        entries, _JOURNAL = _JOURNAL, outer
+        if entries is not None:
+            _settle(entries, keep=done)
+
+
+def keep_outputs_as_written() -> None:
+    """Inside :func:`all_or_nothing`: keep what was written so far, and each file from here
+    on as it is written (a resumable batch, whose finished items are its progress)."""
+    global _JOURNAL
+    if _JOURNAL is not None:
+        _settle(_JOURNAL, keep=True)
+        _JOURNAL = None
+
+
+def _settle(entries: list[tuple[str, str | None, int | None]], keep: bool) -> None:
+    """Drop the backups (``keep``) or put every recorded output back as it was."""
+    for path, backup, fd in reversed(entries):
+        with contextlib.suppress(OSError):
+            if keep:
+                if backup is not None:
+                    os.remove(backup)
+            elif backup is not None:
+                os.replace(backup, path)
+            elif os.path.isdir(path) and not os.path.islink(path):
+                os.rmdir(path)  # a folder output_folder made: only if nothing else is in it
+            else:
+                os.remove(path)
+        if fd is not None:
+            os.close(fd)
+
+
+def _backup(target: str, folder: str, root: str, ext: str) -> tuple[str | None, int | None]:
+    """A locked link (or copy) of the file ``target`` is about to replace, or Nones when
+    there is none."""
+    import shutil
+
+    if not os.path.isfile(target):
+        return None, None
+    backup = os.path.join(folder, f".{root}.old-{secrets.token_hex(4)}{ext}")
+    try:
+        os.link(target, backup)
+    except OSError:
+        shutil.copy2(target, backup)
+    fd = os.open(backup, os.O_RDONLY)
+    _lock(fd, blocking=True)
+    return backup, fd
 
 
 @contextlib.contextmanager
@@ -223,6 +303,9 @@ def atomic_output(path: str | os.PathLike) -> Iterator[str]:
             _fsync_written(tmp, lock)
             with contextlib.suppress(OSError):
                 os.chmod(tmp, stat.S_IMODE(os.stat(target).st_mode))
+            if _JOURNAL is not None:
+                backup, backup_fd = _backup(target, folder, root, ext)
+                _JOURNAL.append((target, backup, backup_fd))
             os.replace(tmp, target)
         except BaseException:
             with contextlib.suppress(OSError):

@@ -154,6 +154,30 @@ def test_synth_into_a_read_only_folder_exits_2_and_leaves_no_folder(read_only_fo
     assert os.listdir(read_only_folder) == []
 
 
+def test_an_interrupt_after_the_first_output_leaves_the_outputs_as_they_were(tmp_path,
+                                                                              monkeypatch):
+    """fit-cage writes the cage, then its preview: Ctrl-C while drawing removes the new
+    cage file and gives a replaced one its earlier content back."""
+    from click.testing import CliRunner
+
+    import cagekit.render
+    from cagekit.cli import main
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cagekit.render, "render_meshes", interrupted)
+    args = ["fit-cage", SHAPE, "--faces", "60", "--preview", str(tmp_path / "p.png")]
+    result = CliRunner().invoke(main, args + ["-o", str(tmp_path / "new.obj")])
+    assert result.exit_code == 130
+    assert os.listdir(tmp_path) == []
+    (tmp_path / "old.obj").write_text("v 0 0 0\n")
+    result = CliRunner().invoke(main, args + ["-o", str(tmp_path / "old.obj")])
+    assert result.exit_code == 130
+    assert (tmp_path / "old.obj").read_text() == "v 0 0 0\n"
+    assert os.listdir(tmp_path) == ["old.obj"]
+
+
 def test_a_failed_synth_leaves_no_folder_it_made(tmp_path, monkeypatch):
     """A folder the command made is removed when the run fails (here: interrupted)."""
     from click.testing import CliRunner
@@ -217,10 +241,8 @@ def test_sigint_prints_one_line_and_leaves_no_partial_output(tmp_path):
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
     assert err.strip().splitlines() == ["cagekit synth: error: interrupted"]
-    names = os.listdir(out)
-    assert names and all(n.startswith("chair_") and n.endswith(".obj") for n in names)
-    for name in names:  # every file there is whole (written atomically)
-        io.load_mesh(out / name)
+    # the shapes written before the interrupt are removed, and the folder the run made
+    assert os.listdir(tmp_path) == []
 
 
 def test_a_native_crash_is_reported_not_silent():

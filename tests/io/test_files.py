@@ -88,3 +88,44 @@ def test_output_folder_removes_the_folders_it_made_when_the_block_fails(tmp_path
     with pytest.raises(InputError, match="is not a folder"), \
             cfiles.output_folder(tmp_path / "file" / "sub"):
         pass
+
+
+def _written(path, text):
+    with cfiles.atomic_output(path) as tmp, open(tmp, "w") as handle:
+        handle.write(text)
+
+
+def test_all_or_nothing_undoes_every_output_of_a_block_that_fails(tmp_path):
+    old = tmp_path / "old.txt"
+    old.write_text("before")
+    with pytest.raises(KeyboardInterrupt):
+        with cfiles.all_or_nothing():
+            _written(old, "after")
+            _written(tmp_path / "new.txt", "new")
+            with cfiles.output_folder(tmp_path / "made" / "deeper") as folder:
+                _written(os.path.join(folder, "inside.txt"), "x")
+                _written(old, "after again")  # written twice: the first content comes back
+            raise KeyboardInterrupt
+    assert old.read_text() == "before"
+    assert sorted(os.listdir(tmp_path)) == ["old.txt"]  # no backup, folder or new file left
+
+
+def test_all_or_nothing_keeps_every_output_of_a_block_that_completes(tmp_path):
+    old = tmp_path / "old.txt"
+    old.write_text("before")
+    with cfiles.all_or_nothing():
+        _written(old, "after")
+        _written(tmp_path / "new.txt", "new")
+    assert old.read_text() == "after" and (tmp_path / "new.txt").read_text() == "new"
+    assert sorted(os.listdir(tmp_path)) == ["new.txt", "old.txt"]
+    # a resumable batch keeps what it wrote so far and from then on
+    with pytest.raises(RuntimeError):
+        with cfiles.all_or_nothing():
+            _written(tmp_path / "first.txt", "1")
+            cfiles.keep_outputs_as_written()
+            _written(tmp_path / "second.txt", "2")
+            raise RuntimeError
+    assert (tmp_path / "first.txt").exists() and (tmp_path / "second.txt").exists()
+    # outside a block nothing is recorded
+    _written(tmp_path / "third.txt", "3")
+    assert cfiles._JOURNAL is None
