@@ -21,7 +21,7 @@ import torch
 
 from cagekit.errors import InputError
 from cagekit.io.files import atomic_output
-from cagekit_learn.shipped import shipped_checkpoint
+from cagekit_learn.shipped import MODELS_DIR, names, shipped_checkpoint
 
 __all__ = ["FORMAT", "CHECKPOINT_NAME", "save_checkpoint", "load_checkpoint", "resolve",
            "nonfinite_tensors"]
@@ -41,6 +41,16 @@ def resolve(path: str | os.PathLike) -> Path:
         return shipped
     path = Path(path)
     return path / CHECKPOINT_NAME if path.is_dir() else path
+
+
+def _hidden_model(given: str | os.PathLike) -> str:
+    """What to add when a folder named like a shipped model hides it (a ``chairs/`` of
+    meshes in the working folder, as the README's amplify example makes)."""
+    name = os.fspath(given).rstrip("/" + os.sep)
+    if os.path.isdir(given) and name in names():
+        return (f" (the folder {name} here hides the shipped model {name!r}; give its "
+                f"file instead: {MODELS_DIR / (name + '.pt')})")
+    return ""
 
 
 def save_checkpoint(path: str | os.PathLike, payload: dict) -> None:
@@ -84,9 +94,9 @@ def load_checkpoint(path: str | os.PathLike,
         Missing or unreadable file, a file that needs more than tensors and plain values
         (refused by the restricted unpickler), or not a cagekit checkpoint.
     """
-    path = resolve(path)
+    given, path = path, resolve(path)
     if not path.is_file():
-        raise InputError(f"{path}: no such checkpoint file")
+        raise InputError(f"{path}: no such checkpoint file{_hidden_model(given)}")
     try:
         payload = torch.load(path, map_location=map_location, weights_only=True)
     except Exception as exc:  # noqa: BLE001 - any failure is the file's fault here

@@ -44,7 +44,7 @@ def _pairs_option(ctx, param, value):
               "trained model (--model).")
 @click.option("--model", "model_path", type=click.Path(), default=None,
               help="Run folder or checkpoint of cagekit train, or a shipped model's name "
-                   "(chairs), with --method model.")
+                   "(chairs, tables), with --method model.")
 @click.option("--refine", is_flag=True, help="With --model: optimise each predicted cage.")
 @click.option("--coords", type=click.Choice(list(DEFORM_COORDINATE_METHODS)), default="mvc",
               show_default=True,

@@ -149,8 +149,8 @@ def _load_landmark_pair(src_path, tgt_path):
                    "into this PNG.")
 @click.option("--model", "model_path", type=click.Path(), default=None,
               help="A trained model (RUN_DIR or RUN_DIR/checkpoint.pt of `cagekit train`, "
-                   "or a shipped model's name: chairs; needs cagekit[learn]): predict the "
-                   "cage and its deformation in one forward pass.")
+                   "or a shipped model's name: chairs, tables; needs cagekit[learn]): "
+                   "predict the cage and its deformation in one forward pass.")
 @click.option("--refine", is_flag=True,
               help="With --model: then optimise the predicted cage per pair (as --method "
                    "cage, started from the prediction).")

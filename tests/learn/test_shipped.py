@@ -48,6 +48,12 @@ def test_a_path_wins_over_a_name_and_an_unknown_name_says_what_ships(tmp_path, m
     assert shipped.shipped_checkpoint("chairs") == shipped.MODELS_DIR / "chairs.pt"
     (tmp_path / "chairs").mkdir()
     assert shipped.shipped_checkpoint("chairs") is None  # the user's own folder
+    # ... which says, when it holds no checkpoint, that it hides the shipped model
+    with pytest.raises(InputError, match=r"chairs/checkpoint.pt: no such checkpoint file "
+                                         r"\(the folder chairs here hides the shipped "
+                                         r"model 'chairs'; give its file instead: .*chairs.pt"):
+        load_model("chairs")
+    assert load_model(str(shipped.MODELS_DIR / "chairs.pt"))[0] is not None
     with pytest.raises(InputError, match=r"nor a shipped model \(shipped: .*chairs"):
         load_model("sofas")
     with pytest.raises(InputError, match="no such checkpoint"):
