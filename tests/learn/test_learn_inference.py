@@ -355,7 +355,8 @@ def test_a_result_worse_than_box_scaling_is_warned_about():
         warnings.simplefilter("error")  # no warning: the result is the scaled source
         assert not warn_if_worse_than_scaling(V, F, target, F, target)
     bent = target + np.c_[np.zeros(len(V)), np.zeros(len(V)), 0.3 * V[:, 1] ** 2]
-    with pytest.warns(CagekitWarning, match=r"bounding box .*Chamfer x1e2 [\d.]+ against"):
+    with pytest.warns(CagekitWarning,
+                      match=r"bounding box .*Chamfer x1e2 of 2,048 samples [\d.]+ against"):
         assert warn_if_worse_than_scaling(V, F, target, F, bent)
 
 
