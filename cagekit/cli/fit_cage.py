@@ -74,9 +74,9 @@ def fit_cage(ctx: click.Context, mesh: str, out: str, faces: int, method: str, c
                                  "wrap", param_hint="'--faces'")
     check_output(out, (mesh,), extensions=set(io.WRITTEN_MESH_EXTENSIONS))
     if preview is not None:
-        check_output(preview, (mesh, out), extensions={".png"})
         if same_file(preview, out):
             raise InputError("the preview and the cage would be the same file", preview)
+        check_output(preview, (mesh,), extensions={".png"})
     V, F = io.load_shape(mesh)
     t0 = time.perf_counter()
     try:

@@ -100,7 +100,9 @@ def save_deformed(path: str | os.PathLike, V: ArrayLike, F: ArrayLike,
                 stacklevel=2)
         save_mesh(path, V, F)
         return
-    V0, F0 = load_mesh(source)
+    with warnings.catch_warnings():  # what the source's file lacks was said when V was read
+        warnings.simplefilter("ignore", MeshFileWarning)
+        V0, F0 = load_mesh(source)
     if V0.shape != V.shape:
         raise InputError(f"has {len(V)} vertices to write but {os.fspath(source)} has "
                          f"{len(V0)}; a deformed copy keeps the source's vertices", path)

@@ -413,6 +413,8 @@ def bad_files(tmp_path):
         (["fit-cage", "shape.obj", "-o", "x.obj", "--preview", "x.jpg"], ["x.jpg"]),
         (["fit-cage", "shape.obj", "-o", "x.obj", "--preview", "no_such_folder/x.png"],
          ["no_such_folder"]),
+        (["fit-cage", "shape.obj", "-o", "x.obj", "--preview", "x.obj"],
+         ["x.obj: the preview and the cage would be the same file"]),
     ],
 )
 def test_bad_input_exits_2_with_one_line(bad_files, args, names):

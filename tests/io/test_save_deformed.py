@@ -306,3 +306,17 @@ def test_a_material_file_of_another_model_beside_the_output_is_never_replaced(te
         assert "newmtl wood" in (out_folder / "armchair_2.mtl").read_text()
     assert sorted(p.name for p in out_folder.glob("*.mtl")) == ["armchair.mtl",
                                                                 "armchair_2.mtl"]
+
+
+def test_what_a_source_file_lacks_is_not_warned_again_when_its_copy_is_written(tmp_path):
+    source = tmp_path / "s.obj"
+    source.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2\nf 1 3 4\n")
+    with pytest.warns(MeshFileWarning, match="dropped 1 face"):
+        V, F = load_mesh(source)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the dropped face was said when V was read
+        save_deformed(tmp_path / "out.obj", _moved(V), F, source)
+    written = [[float(x) for x in line.split()[1:4]]
+               for line in (tmp_path / "out.obj").read_text().splitlines()
+               if line.startswith("v ")]
+    np.testing.assert_allclose(written, _moved(V))
