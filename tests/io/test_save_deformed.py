@@ -310,7 +310,8 @@ def test_a_material_file_of_another_model_beside_the_output_is_never_replaced(te
 
 def test_what_a_source_file_lacks_is_not_warned_again_when_its_copy_is_written(tmp_path):
     source = tmp_path / "s.obj"
-    source.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2\nf 1 3 4\n")
+    source.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nvt 0 0\n"  # UVs: copied
+                      "f 1/1 2/1 3/1\nf 1/1 2/1\nf 1/1 3/1 4/1\n")
     with pytest.warns(MeshFileWarning, match="dropped 1 face"):
         V, F = load_mesh(source)
     with warnings.catch_warnings():
