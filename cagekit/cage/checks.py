@@ -184,11 +184,12 @@ def self_intersecting_faces(cage_v: ArrayLike, cage_f: ArrayLike) -> Bools:
 
 
 def warn_self_intersecting(cage_v: ArrayLike, cage_f: ArrayLike, name: str = "the cage") -> int:
-    """Warn when a (moved) cage intersects itself: the shape it carries folds over.
+    """Warn when a (moved) cage intersects itself: the shape it carries may fold there.
 
     A deformed cage is not refused for it (the coordinates are still defined; the user
-    moved it so), but the motion folds the space between the crossing sheets. Uses the
-    exact test of :func:`check_cage`, :func:`self_intersecting_faces`.
+    moved it so), but the motion folds the space between the crossing sheets, and a shape
+    reaching into it folds with it; where the shape keeps clear of the crossing it comes
+    out whole. Uses the exact test of :func:`check_cage`, :func:`self_intersecting_faces`.
 
     Parameters
     ----------
@@ -215,7 +216,8 @@ def warn_self_intersecting(cage_v: ArrayLike, cage_f: ArrayLike, name: str = "th
     if crossing:
         warnings.warn(CagekitWarning(
             f"{name}: the cage intersects itself ({crossing} of its {len(crossing_faces)} faces "
-            "cross another face); the shape it carries folds over"), stacklevel=2)
+            "cross another face); the shape it carries folds where it reaches between "
+            "the crossing faces"), stacklevel=2)
     return crossing
 
 

@@ -74,7 +74,7 @@ def apply(ctx: click.Context, mesh: str, cage: str, deformed_cage: str, out: str
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
 
     t0 = time.perf_counter()
-    warn_self_intersecting(DV, faces, name=deformed_cage)  # the motion folds the shape
+    warn_self_intersecting(DV, faces, name=deformed_cage)  # the shape may fold there
     seconds["check"] += time.perf_counter() - t0
 
     t0 = time.perf_counter()
