@@ -46,9 +46,10 @@ def resolve(path: str | os.PathLike) -> Path:
 def _hidden_model(given: str | os.PathLike) -> str:
     """What to add when a folder named like a shipped model hides it (a ``chairs/`` of
     meshes in the working folder, as the README's amplify example makes)."""
-    name = os.fspath(given).rstrip("/" + os.sep)
-    if os.path.isdir(given) and name in names():
-        return (f" (the folder {name} here hides the shipped model {name!r}; give its "
+    name = os.path.normpath(os.fspath(given))
+    if os.path.exists(given) and name in names():
+        kind = "folder" if os.path.isdir(given) else "file"
+        return (f" (the {kind} {name} here hides the shipped model {name!r}; give its "
                 f"file instead: {MODELS_DIR / (name + '.pt')})")
     return ""
 
@@ -101,7 +102,8 @@ def load_checkpoint(path: str | os.PathLike,
         payload = torch.load(path, map_location=map_location, weights_only=True)
     except Exception as exc:  # noqa: BLE001 - any failure is the file's fault here
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise InputError(f"{path}: not a readable checkpoint ({first})") from None
+        raise InputError(f"{path}: not a readable checkpoint ({first})"
+                         f"{_hidden_model(given)}") from None
     if not isinstance(payload, dict) or payload.get("format") != FORMAT or "model" not in payload:
         raise InputError(f"{path}: not a cagekit checkpoint (format {FORMAT})")
     return payload

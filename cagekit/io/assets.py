@@ -157,6 +157,15 @@ def remove_deformed(path: str | os.PathLike) -> None:
         os.remove(mtl)
 
 
+def _previous_material_files(path):
+    """:func:`_own_material_files` of a file about to be replaced; none when there is no
+    file there or it cannot be read as an OBJ (empty, binary, unreadable)."""
+    try:
+        return _own_material_files(path) if os.path.isfile(path) else []
+    except (InputError, OSError, UnicodeError):
+        return []
+
+
 def _own_material_files(path):
     """The material files an OBJ names that lie beside it (plain names, no folder)."""
     if extension(path) != ".obj":
@@ -268,7 +277,7 @@ def _write_obj(path, V, V0, F0, source):
     corners, normals = _obj_corners(lines, source)
     pairs, new_normals = _obj_carried_normals(V0, V, corners, normals)
     src_folder = os.path.dirname(os.path.abspath(os.fspath(source)))
-    text, vertex, normals_written, face, materials = [], 0, False, 0, []
+    text, vertex, normals_written, face, materials, copies = [], 0, False, 0, [], []
     for line in lines:
         parts = line.split("#", 1)[0].split()
         key = parts[0] if parts else ""
@@ -285,27 +294,33 @@ def _write_obj(path, V, V0, F0, source):
         elif key == "vn":
             pass  # replaced by the carried normals above
         elif key == "mtllib":
-            text.append(_mtllib(line, src_folder, path, materials))
+            text.append(_mtllib(line, src_folder, path, materials, copies))
         else:
             text.append(line)
     with atomic_output(path) as tmp, open(tmp, "w", encoding="utf-8",
                                                    errors="surrogateescape") as handle:
         handle.write("\n".join(text) + "\n")
+    for mtl, copy in copies:
+        _copy_mtl(mtl, copy)
 
 
-def _mtllib(line, src_folder, out_path, written):
+def _mtllib(line, src_folder, out_path, written, copies):
     """An ``mtllib`` line for the output: each material file that exists is copied beside
     the output (``<output stem>.mtl``, then ``<stem>_2.mtl``...) with its texture paths
     made relative to the output's folder, so readers that resolve textures from the OBJ's
     folder (trimesh) and those that resolve them from the MTL's (Blender) both find them;
     a missing one is named relative to the output's folder. A name with spaces is one path
     when a file of that name exists beside the source. ``written`` lists the material
-    files the output names so far; a copy never replaces one of the source's own, nor a
+    files the output names so far; ``copies`` gets the (material file, copy) pairs to
+    write once the OBJ is written (a run stopped between the two leaves an OBJ whose
+    material file is missing, which the next run writes under the same name, not an orphan
+    material file that it would take for another model's); a copy never replaces one of
+    the source's own, nor a
     material file already in the output's folder other than those the output it replaces
     named (another model's: an OBJ written as ``armchair.obj`` beside the ``armchair.mtl``
     of the target it was deformed onto gets ``armchair_2.mtl``)."""
     out_folder = os.path.dirname(os.path.abspath(os.fspath(out_path)))
-    previous = set(_own_material_files(out_path)) if os.path.isfile(out_path) else set()
+    previous = set(_previous_material_files(out_path))
     names = _mtllib_names(line, src_folder)
     sources = {os.path.abspath(_beside(name, src_folder)) for name in names}
     stem = os.path.splitext(os.path.basename(os.fspath(out_path)))[0]
@@ -317,7 +332,7 @@ def _mtllib(line, src_folder, out_path, written):
             continue
         copy = _free_mtl_name(out_folder, stem, mtl, sources | set(written), previous)
         if copy != mtl:  # else the source's own, beside the output already: valid as it is
-            _copy_mtl(mtl, copy)
+            copies.append((mtl, copy))
         written.append(copy)
         out.append(os.path.basename(copy))
     return " ".join(["mtllib", *out])

@@ -136,7 +136,7 @@ def output_folder(path: str | os.PathLike) -> Iterator[str]:
     except OSError as exc:
         raise InputError(f"cannot make the folder: {exc.strerror or exc}", path) from None
     if _JOURNAL is not None:  # removed again (when empty) if all_or_nothing's block fails
-        _JOURNAL.extend((folder, None, None) for folder in reversed(missing))
+        _JOURNAL.extend(reversed(missing))
     try:
         yield target
     except BaseException:
@@ -151,25 +151,24 @@ _SWEPT: set[str] = set()
 
 #: temporary names: ``.<name>.tmp-<8 hex><ext>`` (being written, locked) and
 #: ``.<name>.new-<8 hex><ext>`` (just created, about to be locked and renamed)
-_TEMPORARY = re.compile(r"^\..*\.(tmp|new|old)-[0-9a-f]{8}(\.[^.]*)?$")
+_TEMPORARY = re.compile(r"^\..*\.(tmp|new)-[0-9a-f]{8}(\.[^.]*)?$")
 
-#: the outputs :func:`atomic_output` wrote inside :func:`all_or_nothing`, in order:
-#: ``(path, backup of the file it replaced or None, the backup's locked descriptor or None)``
-_JOURNAL: list[tuple[str, str | None, int | None]] | None = None
+#: the files :func:`atomic_output` created (where there was none) and the folders
+#: :func:`output_folder` made inside :func:`all_or_nothing`, in order
+_JOURNAL: list[str] | None = None
 
 
 @contextlib.contextmanager
 def all_or_nothing() -> Iterator[None]:
-    """Keep the files the block writes only if it completes.
+    """Remove the outputs a block created when it fails.
 
-    Every file :func:`atomic_output` writes in the block is recorded, and every folder
-    :func:`output_folder` makes; when the block raises (an error, an interrupt), each file
-    it created is removed and each one it replaced gets its earlier content back, the last
-    written first, and the folders it made are removed when empty, so a command stopped
-    half-way leaves its outputs as they were before it ran. A replaced file is kept until
-    then as a hard link (a copy where the file system has none) beside it, ``.<name>.old-
-    <8 hex digits><ext>``, locked like the temporary files, so that a process killed
-    outright leaves a stale one for the next write into that folder to remove.
+    Every file :func:`atomic_output` creates in the block (where no file was) and every
+    folder :func:`output_folder` makes is recorded; when the block raises an exception or
+    is interrupted (Ctrl-C), they are removed again, the last first (a folder only when
+    it is empty), so a command stopped half-way leaves no output it made. A file the block
+    replaced keeps its new content: its earlier one is not kept (keeping it would hold a
+    copy of every replaced file until the end). ``SystemExit`` counts as completion (click
+    exits so when the reader of a finished command's output goes away).
 
     Examples
     --------
@@ -179,57 +178,29 @@ def all_or_nothing() -> Iterator[None]:
     """
     global _JOURNAL
     outer, _JOURNAL = _JOURNAL, []
-    done = False
     try:
         yield
-        done = True
+    except BaseException as exc:
+        made, _JOURNAL = _JOURNAL, outer
+        if isinstance(exc, (SystemExit, GeneratorExit)):
+            raise
+        for path in reversed(made or ()):
+            with contextlib.suppress(OSError):
+                if os.path.isdir(path) and not os.path.islink(path):
+                    os.rmdir(path)  # only if nothing else is in it
+                else:
+                    os.remove(path)
+        raise
     finally:
-        entries, _JOURNAL = _JOURNAL, outer
-        if entries is not None:
-            _settle(entries, keep=done)
+        if _JOURNAL is not outer:
+            _JOURNAL = outer
 
 
 def keep_outputs_as_written() -> None:
-    """Inside :func:`all_or_nothing`: keep what was written so far, and each file from here
-    on as it is written (a resumable batch, whose finished items are its progress)."""
+    """Inside :func:`all_or_nothing`: keep every output, those written so far and those to
+    come (a resumable batch, whose finished items are its progress)."""
     global _JOURNAL
-    if _JOURNAL is not None:
-        _settle(_JOURNAL, keep=True)
-        _JOURNAL = None
-
-
-def _settle(entries: list[tuple[str, str | None, int | None]], keep: bool) -> None:
-    """Drop the backups (``keep``) or put every recorded output back as it was."""
-    for path, backup, fd in reversed(entries):
-        with contextlib.suppress(OSError):
-            if keep:
-                if backup is not None:
-                    os.remove(backup)
-            elif backup is not None:
-                os.replace(backup, path)
-            elif os.path.isdir(path) and not os.path.islink(path):
-                os.rmdir(path)  # a folder output_folder made: only if nothing else is in it
-            else:
-                os.remove(path)
-        if fd is not None:
-            os.close(fd)
-
-
-def _backup(target: str, folder: str, root: str, ext: str) -> tuple[str | None, int | None]:
-    """A locked link (or copy) of the file ``target`` is about to replace, or Nones when
-    there is none."""
-    import shutil
-
-    if not os.path.isfile(target):
-        return None, None
-    backup = os.path.join(folder, f".{root}.old-{secrets.token_hex(4)}{ext}")
-    try:
-        os.link(target, backup)
-    except OSError:
-        shutil.copy2(target, backup)
-    fd = os.open(backup, os.O_RDONLY)
-    _lock(fd, blocking=True)
-    return backup, fd
+    _JOURNAL = None
 
 
 @contextlib.contextmanager
@@ -303,10 +274,10 @@ def atomic_output(path: str | os.PathLike) -> Iterator[str]:
             _fsync_written(tmp, lock)
             with contextlib.suppress(OSError):
                 os.chmod(tmp, stat.S_IMODE(os.stat(target).st_mode))
-            if _JOURNAL is not None:
-                backup, backup_fd = _backup(target, folder, root, ext)
-                _JOURNAL.append((target, backup, backup_fd))
+            created = not os.path.lexists(target)
             os.replace(tmp, target)
+            if created and _JOURNAL is not None:
+                _JOURNAL.append(target)
         except BaseException:
             with contextlib.suppress(OSError):
                 os.remove(tmp)

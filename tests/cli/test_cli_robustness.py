@@ -154,10 +154,10 @@ def test_synth_into_a_read_only_folder_exits_2_and_leaves_no_folder(read_only_fo
     assert os.listdir(read_only_folder) == []
 
 
-def test_an_interrupt_after_the_first_output_leaves_the_outputs_as_they_were(tmp_path,
-                                                                              monkeypatch):
+def test_an_interrupt_after_the_first_output_removes_what_the_command_made(tmp_path,
+                                                                           monkeypatch):
     """fit-cage writes the cage, then its preview: Ctrl-C while drawing removes the new
-    cage file and gives a replaced one its earlier content back."""
+    cage file; a cage file it replaced keeps the new cage (its old content is not kept)."""
     from click.testing import CliRunner
 
     import cagekit.render
@@ -174,8 +174,20 @@ def test_an_interrupt_after_the_first_output_leaves_the_outputs_as_they_were(tmp
     (tmp_path / "old.obj").write_text("v 0 0 0\n")
     result = CliRunner().invoke(main, args + ["-o", str(tmp_path / "old.obj")])
     assert result.exit_code == 130
-    assert (tmp_path / "old.obj").read_text() == "v 0 0 0\n"
     assert os.listdir(tmp_path) == ["old.obj"]
+    assert len(io.load_mesh(tmp_path / "old.obj")[1]) > 0  # the new cage
+
+
+def test_a_finished_commands_outputs_stay_when_its_reader_goes_away(tmp_path):
+    """click exits 1 on a closed stdout pipe: the command had finished, its files stay."""
+    code = ("import sys; from cagekit.cli import main; "
+            f"sys.argv = ['cagekit', 'synth', 'chairs', '-n', '2', '-o', {str(tmp_path / 's')!r}]; "
+            "main()")
+    proc = subprocess.run(f"{sys.executable} -c \"{code}\" | head -c0", shell=True,
+                          env={**os.environ, "PYTHONPATH": ROOT}, capture_output=True,
+                          text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert len(os.listdir(tmp_path / "s")) == 2
 
 
 def test_a_failed_synth_leaves_no_folder_it_made(tmp_path, monkeypatch):

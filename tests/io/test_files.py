@@ -95,29 +95,37 @@ def _written(path, text):
         handle.write(text)
 
 
-def test_all_or_nothing_undoes_every_output_of_a_block_that_fails(tmp_path):
+def test_all_or_nothing_removes_what_a_failed_block_made(tmp_path):
     old = tmp_path / "old.txt"
     old.write_text("before")
     with pytest.raises(KeyboardInterrupt):
         with cfiles.all_or_nothing():
-            _written(old, "after")
+            _written(old, "after")  # replaced: keeps its new content
             _written(tmp_path / "new.txt", "new")
             with cfiles.output_folder(tmp_path / "made" / "deeper") as folder:
                 _written(os.path.join(folder, "inside.txt"), "x")
-                _written(old, "after again")  # written twice: the first content comes back
+                _written(os.path.join(folder, "inside.txt"), "y")  # written twice
             raise KeyboardInterrupt
-    assert old.read_text() == "before"
-    assert sorted(os.listdir(tmp_path)) == ["old.txt"]  # no backup, folder or new file left
+    assert sorted(os.listdir(tmp_path)) == ["old.txt"]  # no new file, no folder left
+    assert old.read_text() == "after"
+    # a dangling link at an output path was there before: it is replaced, never removed
+    (tmp_path / "link.txt").symlink_to(tmp_path / "nowhere")
+    with pytest.raises(RuntimeError):
+        with cfiles.all_or_nothing():
+            _written(tmp_path / "link.txt", "through the link")
+            raise RuntimeError
+    assert os.path.lexists(tmp_path / "link.txt")
 
 
-def test_all_or_nothing_keeps_every_output_of_a_block_that_completes(tmp_path):
-    old = tmp_path / "old.txt"
-    old.write_text("before")
+def test_all_or_nothing_keeps_the_outputs_of_a_block_that_completes_or_exits(tmp_path):
     with cfiles.all_or_nothing():
-        _written(old, "after")
         _written(tmp_path / "new.txt", "new")
-    assert old.read_text() == "after" and (tmp_path / "new.txt").read_text() == "new"
-    assert sorted(os.listdir(tmp_path)) == ["new.txt", "old.txt"]
+    assert (tmp_path / "new.txt").read_text() == "new"
+    with pytest.raises(SystemExit):  # click exits so when a reader closes its pipe
+        with cfiles.all_or_nothing():
+            _written(tmp_path / "exited.txt", "done")
+            raise SystemExit(1)
+    assert (tmp_path / "exited.txt").exists()
     # a resumable batch keeps what it wrote so far and from then on
     with pytest.raises(RuntimeError):
         with cfiles.all_or_nothing():
@@ -126,6 +134,4 @@ def test_all_or_nothing_keeps_every_output_of_a_block_that_completes(tmp_path):
             _written(tmp_path / "second.txt", "2")
             raise RuntimeError
     assert (tmp_path / "first.txt").exists() and (tmp_path / "second.txt").exists()
-    # outside a block nothing is recorded
-    _written(tmp_path / "third.txt", "3")
-    assert cfiles._JOURNAL is None
+    assert cfiles._JOURNAL is None  # outside a block nothing is recorded

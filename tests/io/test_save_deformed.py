@@ -321,3 +321,17 @@ def test_what_a_source_file_lacks_is_not_warned_again_when_its_copy_is_written(t
                for line in (tmp_path / "out.obj").read_text().splitlines()
                if line.startswith("v ")]
     np.testing.assert_allclose(written, _moved(V))
+
+
+def test_an_obj_result_replaces_an_empty_file_and_a_result_missing_its_material_file(
+        textured_obj, tmp_path):
+    V, F = load_mesh(textured_obj)
+    out = tmp_path / "r.obj"
+    out.write_text("")  # an empty file where the result goes
+    save_deformed(out, _moved(V), F, textured_obj)
+    assert _records(out, "mtllib") == ["mtllib r.mtl"]
+    # a run stopped after the OBJ, before its material file: the next writes the same name
+    (tmp_path / "r.mtl").unlink()
+    save_deformed(out, _moved(V), F, textured_obj)
+    assert _records(out, "mtllib") == ["mtllib r.mtl"] and (tmp_path / "r.mtl").is_file()
+    assert sorted(p.name for p in tmp_path.glob("*.mtl")) == ["r.mtl"]

@@ -54,6 +54,10 @@ def test_a_path_wins_over_a_name_and_an_unknown_name_says_what_ships(tmp_path, m
                                          r"model 'chairs'; give its file instead: .*chairs.pt"):
         load_model("chairs")
     assert load_model(str(shipped.MODELS_DIR / "chairs.pt"))[0] is not None
+    (tmp_path / "tables").write_text("not a model")  # a file hides one too
+    with pytest.raises(InputError, match=r"not a readable checkpoint .*the file tables here "
+                                         r"hides the shipped model 'tables'"):
+        load_model("./tables")
     with pytest.raises(InputError, match=r"nor a shipped model \(shipped: .*chairs"):
         load_model("sofas")
     with pytest.raises(InputError, match="no such checkpoint"):
