@@ -191,9 +191,10 @@ def all_or_nothing() -> Iterator[None]:
                 else:
                     os.remove(path)
         raise
-    finally:
-        if _JOURNAL is not outer:
-            _JOURNAL = outer
+    else:  # an enclosing block takes over what this one made
+        made, _JOURNAL = _JOURNAL, outer
+        if outer is not None and made is not None:
+            outer.extend(made)
 
 
 def keep_outputs_as_written() -> None:

@@ -135,3 +135,10 @@ def test_all_or_nothing_keeps_the_outputs_of_a_block_that_completes_or_exits(tmp
             raise RuntimeError
     assert (tmp_path / "first.txt").exists() and (tmp_path / "second.txt").exists()
     assert cfiles._JOURNAL is None  # outside a block nothing is recorded
+    # a block inside another hands what it made to the outer one
+    with pytest.raises(RuntimeError):
+        with cfiles.all_or_nothing():
+            with cfiles.all_or_nothing():
+                _written(tmp_path / "inner.txt", "i")
+            raise RuntimeError
+    assert not (tmp_path / "inner.txt").exists()
