@@ -40,6 +40,7 @@ Only what ``cagekit transfer`` reads, for one character (20 MB instead of 810)::
 
 from __future__ import annotations
 
+import contextlib
 import json
 from pathlib import Path
 
@@ -229,11 +230,11 @@ def write(out_dir, *, poses: int = 20, train_poses: int = 1000, seed: int = 0,
         raise InputError(f"--seed plus --train-poses must stay in [0, {TEST_POSE_SEED}]")
     names = landmark_names(landmarks)
     out = Path(out_dir)
-    with output_folder(out):
+    with output_folder(out), contextlib.ExitStack() as made:  # a failed run removes them
         for folder in ("characters", "poses", *(["reverse"] if reverse else []),
                        *(["train"] if train_poses else []),
                        *(f"truth/{b}" for b in ((*bodies, *novel) if truth else ()))):
-            (out / folder).mkdir(parents=True, exist_ok=True)
+            made.enter_context(output_folder(out / folder))
         template = humanoid.rig("template", resolution=resolution)
         io.save_mesh(out / "template.obj", template.vertices, template.faces)
         cage_v, cage_f = template_cage(template, kind=cage, faces=cage_faces, seed=seed)

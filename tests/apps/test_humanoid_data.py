@@ -117,3 +117,19 @@ def test_the_command_line_takes_the_recipe_s_options(tmp_path):
     assert (tmp_path / "d" / "characters" / "relaxed.picked").exists()
     bad = CliRunner().invoke(humanoid_data.main, [str(tmp_path / "e"), "--characters", "x"])
     assert bad.exit_code == 2 and "unknown x" in bad.output
+
+
+def test_an_interrupted_run_leaves_no_folder_or_file_it_made(tmp_path, monkeypatch):
+    """Ctrl-C after the template is written: the template, the subfolders and the output
+    folder go again (cagekit.io.files.all_or_nothing, output_folder)."""
+    from click.testing import CliRunner
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(humanoid_data, "template_cage", interrupted)
+    result = CliRunner().invoke(humanoid_data.main, [
+        str(tmp_path / "d"), "--characters", "relaxed", "--poses", "1", "--train-poses", "0",
+        "--no-truth", "--no-reverse", "--resolution", "0.5", "--landmarks", "40"])
+    assert result.exit_code == 130, result.output
+    assert list(tmp_path.iterdir()) == []
