@@ -278,6 +278,7 @@ def _write_obj(path, V, V0, F0, source):
     pairs, new_normals = _obj_carried_normals(V0, V, corners, normals)
     src_folder = os.path.dirname(os.path.abspath(os.fspath(source)))
     text, vertex, normals_written, face, materials, copies = [], 0, False, 0, [], []
+    previous = set(_previous_material_files(path))  # read once, before it is replaced
     for line in lines:
         parts = line.split("#", 1)[0].split()
         key = parts[0] if parts else ""
@@ -294,7 +295,7 @@ def _write_obj(path, V, V0, F0, source):
         elif key == "vn":
             pass  # replaced by the carried normals above
         elif key == "mtllib":
-            text.append(_mtllib(line, src_folder, path, materials, copies))
+            text.append(_mtllib(line, src_folder, path, materials, copies, previous))
         else:
             text.append(line)
     with atomic_output(path) as tmp, open(tmp, "w", encoding="utf-8",
@@ -304,7 +305,7 @@ def _write_obj(path, V, V0, F0, source):
         _copy_mtl(mtl, copy)
 
 
-def _mtllib(line, src_folder, out_path, written, copies):
+def _mtllib(line, src_folder, out_path, written, copies, previous):
     """An ``mtllib`` line for the output: each material file that exists is copied beside
     the output (``<output stem>.mtl``, then ``<stem>_2.mtl``...) with its texture paths
     made relative to the output's folder, so readers that resolve textures from the OBJ's
@@ -315,12 +316,11 @@ def _mtllib(line, src_folder, out_path, written, copies):
     write once the OBJ is written (a run stopped between the two leaves an OBJ whose
     material file is missing, which the next run writes under the same name, not an orphan
     material file that it would take for another model's); a copy never replaces one of
-    the source's own, nor a
-    material file already in the output's folder other than those the output it replaces
-    named (another model's: an OBJ written as ``armchair.obj`` beside the ``armchair.mtl``
-    of the target it was deformed onto gets ``armchair_2.mtl``)."""
+    the source's own, nor a material file already in the output's folder other than those
+    the output it replaces named (``previous``; another model's: an OBJ written as
+    ``armchair.obj`` beside the ``armchair.mtl`` of the target it was deformed onto gets
+    ``armchair_2.mtl``)."""
     out_folder = os.path.dirname(os.path.abspath(os.fspath(out_path)))
-    previous = set(_previous_material_files(out_path))
     names = _mtllib_names(line, src_folder)
     sources = {os.path.abspath(_beside(name, src_folder)) for name in names}
     stem = os.path.splitext(os.path.basename(os.fspath(out_path)))[0]
