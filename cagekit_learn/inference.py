@@ -399,8 +399,7 @@ class ModelDeformer:
         self._model: tuple[NeuralCages, int] | None = None
 
     def __getstate__(self):
-        return {"path": self.path, "refine": self.refine,
-                "scaling_fallback": self.scaling_fallback, "_model": None}
+        return {**self.__dict__, "_model": None}  # the settings, never the loaded model
 
     def __call__(self, V_src: ArrayLike, F_src: ArrayLike | None, V_tgt: ArrayLike,
                  F_tgt: ArrayLike | None = None, seed: int = 0) -> DeformResult:
