@@ -89,11 +89,14 @@ MAX_CD = 0.05
 #: a variation in which more than this many pairs of parts, apart in the source, pass
 #: through each other (:func:`cagekit.batch.crossing.part_crossings`) is rejected
 MAX_CROSSINGS = 0
-#: the manifest's columns, in order
-COLUMNS = ("source", "target", "output", "method", "coords", "seed", "status", "reason", "cd",
-           "dcotlap", "parts", "part_nonaffinity_median", "part_nonaffinity_worst",
-           "planarity_p95_deg", "crossing_parts", "crossing_pairs", "seconds", "cage_seconds",
-           "error", "source_hash", "target_hash")
+#: the manifest's columns, in order. ``method`` is the batch's; ``deformed_by`` what made
+#: the item (:attr:`cagekit.DeformResult.method`): with ``model``, ``learned``, or ``scale``
+#: where the network's result was further from the target than the box scaling and
+#: the scaling was handed on instead, or ``cage`` after a fall back
+COLUMNS = ("source", "target", "output", "method", "deformed_by", "coords", "seed", "status",
+           "reason", "cd", "dcotlap", "parts", "part_nonaffinity_median",
+           "part_nonaffinity_worst", "planarity_p95_deg", "crossing_parts", "crossing_pairs",
+           "seconds", "cage_seconds", "error", "source_hash", "target_hash")
 #: the figures of :func:`cagekit.evaluate` an item records
 _METRICS = ("cd", "dcotlap", "parts", "part_nonaffinity_median", "part_nonaffinity_worst",
             "planarity_p95_deg")
@@ -303,8 +306,8 @@ def deform_item(source: str, target: str, method: str = "cage", seed: int = 0,
     dict
         ``status`` ("ok" or "failed"), ``error`` (one line or ""), and for "ok" the
         ``vertices`` (n, 3) float64 and ``faces`` of the variation, the figures of
-        :func:`cagekit.evaluate` (``cd``, ``dcotlap``, part non-affinity, planarity), the
-        ``cage`` used (or None), ``seconds`` (the whole item) and ``cage_seconds`` (the fit,
+        :func:`cagekit.evaluate` (``cd``, ``dcotlap``, part non-affinity, planarity),
+        ``deformed_by`` (the result's method), the ``cage`` used (or None), ``seconds`` (the whole item) and ``cage_seconds`` (the fit,
         0 when the cage was given); ``warnings``, those the item issued, as
         ``(message, category, filename, lineno)`` for :func:`amplify` to issue again where
         the batch runs (a worker's own stderr is not the command's; an item run in a
@@ -394,8 +397,8 @@ def _deform_and_score(source, target, method, seed, cage, deformer, out, coords)
     figures = evaluate(Vs, Fs, Vt, Ft, result.vertices, seed=seed,
                        frames=(result.source_frame, result.target_frame))
     crossings = part_crossings(Vs, Fs, result.vertices)
-    out.update(crossing_parts=crossings.count,
-               crossing_pairs=crossings.named())
+    out.update(crossing_parts=crossings.count, crossing_pairs=crossings.named(),
+               deformed_by=result.method)
     return figures, result, Fs
 
 
@@ -1048,6 +1051,7 @@ class _Runner:
                "source_hash": item.source.fingerprint, "target_hash": item.target.fingerprint}
         for name in _FIGURES:
             row[name] = result.get(name)
+        row["deformed_by"] = result.get("deformed_by", "")
         self._relay(result.get("warnings", ()))
         if result["status"] == "ok":
             row["status"], row["reason"] = _verdict(row, *self.limits)

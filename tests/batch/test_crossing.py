@@ -156,6 +156,22 @@ def test_amplify_rejects_crossed_legs_and_says_why(two_stools, tmp_path):
     assert len(os.listdir(tmp_path / "crossed" / "variations")) == 2
 
 
+def test_the_manifest_says_what_deformed_each_item(two_stools, tmp_path):
+    # a model's deformer may hand on the box scaling (or a fitted cage's result): the
+    # manifest's method stays the batch's, deformed_by is the result's own
+    def deformer(V_src, F_src, V_tgt, F_tgt, seed):
+        result = leaning_deformer(V_src, F_src, V_tgt, F_tgt, seed)
+        result.method = "scale" if np.ptp(np.asarray(V_tgt)[:, 0]) > 1.3 else "learned"
+        return result
+
+    rows = amplify(str(two_stools), str(tmp_path / "out"), pairs="all", method="model",
+                   deformer=deformer, workers=1, max_cd=np.inf, max_nonaffinity=np.inf)
+    assert [(r["source"], r["method"], r["deformed_by"]) for r in rows] == [
+        ("narrow", "model", "scale"), ("wide", "model", "learned")]
+    with open(tmp_path / "out" / "manifest.csv", newline="") as fh:
+        assert [r["deformed_by"] for r in csv.DictReader(fh)] == ["scale", "learned"]
+
+
 def test_the_help_documents_the_crossing_test():
     result = cagekit("amplify", "--help")
     assert result.returncode == 0
