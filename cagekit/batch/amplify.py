@@ -307,11 +307,12 @@ def deform_item(source: str, target: str, method: str = "cage", seed: int = 0,
         ``status`` ("ok" or "failed"), ``error`` (one line or ""), and for "ok" the
         ``vertices`` (n, 3) float64 and ``faces`` of the variation, the figures of
         :func:`cagekit.evaluate` (``cd``, ``dcotlap``, part non-affinity, planarity),
-        ``deformed_by`` (the result's method), the ``cage`` used (or None), ``seconds`` (the whole item) and ``cage_seconds`` (the fit,
-        0 when the cage was given); ``warnings``, those the item issued, as
-        ``(message, category, filename, lineno)`` for :func:`amplify` to issue again where
-        the batch runs (a worker's own stderr is not the command's; an item run in a
-        thread other than the main one leaves its warnings where they are issued).
+        ``deformed_by`` (the result's method), the ``cage`` used (or None), ``seconds``
+        (the whole item) and ``cage_seconds`` (the fit, 0 when the cage was given);
+        ``warnings``, those the item issued, as ``(message, category, filename, lineno)``
+        for :func:`amplify` to issue again where the batch runs (a worker's own stderr
+        is not the command's; an item run in a thread other than the main one leaves its
+        warnings where they are issued).
     """
     start = time.perf_counter()
     out: dict[str, Any] = {"status": "failed", "error": "", "cage": None,
