@@ -20,6 +20,8 @@ core (lazily, so that ``--help`` stays fast). The rules (docs/architecture.md):
 - every other warning is one line, ``cagekit CMD: warning: ...`` (cagekit's own
   :class:`~cagekit.errors.CagekitWarning`, or another library's, named after the message);
   ``--debug`` shows Python's usual form;
+- SIGTERM (``kill``, ``timeout``) is taken as a SIGINT, with the line ``terminated`` and
+  status 143;
 - SIGINT (Ctrl-C) ends the command with one line, ``interrupted``, and status 130; outputs
   being written are removed (they are atomic), folders the command made are removed when
   empty; an error that an interrupt caused (native code that called Python back wraps it
@@ -126,14 +128,18 @@ class OneLineErrors:
         _report_native_crashes()
         if standalone_mode:
             _ignore_sigint_at_exit()
+        _TERMINATED.clear()
         with _one_line_warnings(prog, debug), _sigint_raises(Interrupted):
             try:
                 code, error, message = self._outcome(args, prog, complete_var, debug, extra)
+                if code == 130 and _TERMINATED:
+                    code, message = 143, "terminated"
                 if error is not None:
                     _print_error(code, error, message, debug, prog)
             except (click.Abort, KeyboardInterrupt, Interrupted) as exc:  # while reporting
-                code = 130
-                _print_error(code, exc, "interrupted", debug, prog)
+                code = 143 if _TERMINATED else 130
+                _print_error(code, exc, "terminated" if _TERMINATED else "interrupted",
+                             debug, prog)
         if standalone_mode:
             sys.exit(code)
         return code
@@ -309,7 +315,10 @@ def _ignore_sigint() -> None:
 
 @contextlib.contextmanager
 def _sigint_raises(exception):
-    """SIGINT raises ``exception`` in the main thread while the block runs."""
+    """SIGINT raises ``exception`` in the main thread while the block runs; SIGTERM is
+    noted in :data:`_TERMINATED` and sent on as a SIGINT, so that it stops the command
+    where a Ctrl-C would (code that holds a Ctrl-C back, :mod:`cagekit.interrupts`, holds
+    it back too) and leaves what a Ctrl-C leaves."""
     import threading
 
     if threading.current_thread() is not threading.main_thread():
@@ -320,11 +329,17 @@ def _sigint_raises(exception):
         signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C while unwinding
         raise exception()
 
+    def terminate(signum, frame):
+        _TERMINATED.append(True)
+        signal.raise_signal(signal.SIGINT)
+
     previous = signal.signal(signal.SIGINT, handler)
+    previous_term = signal.signal(signal.SIGTERM, terminate)
     try:
         yield
     finally:
         signal.signal(signal.SIGINT, previous)
+        signal.signal(signal.SIGTERM, previous_term)
 
 
 def _os_error_message(exc: OSError) -> str:
@@ -341,6 +356,8 @@ _CURRENT: dict[str, str] = {}
 _ARGUMENTS: dict[str, list[str]] = {}
 #: the exit hook of :func:`_ignore_sigint_at_exit`, once registered
 _EXIT_HOOK: list = []
+#: not empty once a SIGTERM came (the command ends as a Ctrl-C ends it, status 143)
+_TERMINATED: list = []
 
 
 class Group(OneLineErrors, click.Group):

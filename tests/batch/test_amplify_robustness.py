@@ -236,15 +236,26 @@ def text_until(lines, end=None):
     return text
 
 
+def _ctrl_c(process):
+    os.killpg(process.pid, signal.SIGINT)  # as a terminal sends Ctrl-C: to the group
+
+
+def _terminate(process):
+    process.send_signal(signal.SIGTERM)  # as `timeout` and `kill` send it: to the batch only
+
+
 @two_cores
-def test_ctrl_c_ends_the_batch_with_one_line_and_no_process_left(tmp_path):
+@pytest.mark.parametrize("send, status, line", [(_ctrl_c, 130, "interrupted"),
+                                                (_terminate, 143, "terminated")])
+def test_ctrl_c_ends_the_batch_with_one_line_and_no_process_left(tmp_path, send, status,
+                                                                 line):
     process = start_batch(tmp_path / "out", stderr=subprocess.PIPE)
     lines, procs = lines_of(process.stderr), []
     try:
         procs = working(process, tmp_path / "out")
         workers = [proc for proc in procs if is_worker(proc)]
-        os.killpg(process.pid, signal.SIGINT)  # as a terminal sends Ctrl-C: to the group
-        stderr = text_until(lines, "interrupted")
+        send(process)
+        stderr = text_until(lines, line)
         running = alive(workers)  # as the command says it stopped: none still working
         process.wait(timeout=PATIENCE)
     finally:
@@ -254,9 +265,9 @@ def test_ctrl_c_ends_the_batch_with_one_line_and_no_process_left(tmp_path):
         left = survivors(procs)  # killed: none is left behind, whatever failed
     stderr += text_until(lines)
     assert running == [] and left == []
-    assert process.returncode == 130, stderr
-    errors = [line for line in one_line_messages(stderr) if ": error: " in line]
-    assert errors == ["cagekit amplify: error: interrupted"] == one_line_messages(stderr)[-1:]
+    assert process.returncode == status, stderr
+    errors = [m for m in one_line_messages(stderr) if ": error: " in m]
+    assert errors == [f"cagekit amplify: error: {line}"] == one_line_messages(stderr)[-1:]
     assert len(manifest_of(tmp_path / "out")["items"]) < 6  # it stopped, not ran to the end
 
 

@@ -241,7 +241,11 @@ def test_a_foreign_warning_is_one_line_too():
         "demo: warning: first line second line (<string> UserWarning)"]
 
 
-def test_sigint_prints_one_line_and_leaves_no_partial_output(tmp_path):
+@pytest.mark.parametrize("signum, status, line", [(signal.SIGINT, 130, "interrupted"),
+                                                  (signal.SIGTERM, 143, "terminated")])
+def test_a_signal_prints_one_line_and_leaves_no_partial_output(tmp_path, signum, status,
+                                                               line):
+    """Ctrl-C, and SIGTERM (``kill``, ``timeout``) as well."""
     out = tmp_path / "shapes"
     env = {**os.environ, "PYTHONPATH": ROOT}
     proc = subprocess.Popen([sys.executable, "-m", "cagekit.cli", "synth", "chairs", "-n", "500",
@@ -249,10 +253,10 @@ def test_sigint_prints_one_line_and_leaves_no_partial_output(tmp_path):
                             text=True, env=env)
     while proc.poll() is None and not (out.is_dir() and len(os.listdir(out)) >= 2):
         time.sleep(0.01)  # wait until it is writing shapes
-    proc.send_signal(signal.SIGINT)
+    proc.send_signal(signum)
     _, err = proc.communicate(timeout=120)
-    assert proc.returncode == 130, err
-    assert err.strip().splitlines() == ["cagekit synth: error: interrupted"]
+    assert proc.returncode == status, err
+    assert err.strip().splitlines() == [f"cagekit synth: error: {line}"]
     # the shapes written before the interrupt are removed, and the folder the run made
     assert os.listdir(tmp_path) == []
 
