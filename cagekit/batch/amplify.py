@@ -1058,9 +1058,16 @@ class _Runner:
             row["status"], row["reason"] = _verdict(row, *self.limits)
             if row["status"] == "ok" or not self.drop_rejected:
                 folder = "variations" if row["status"] == "ok" else "rejected"
+                path = os.path.join(self.folder, folder, item.output)
                 try:
-                    _save_variation(os.path.join(self.folder, folder, item.output),
-                                    result["vertices"], result["faces"], item.source.location)
+                    with warnings.catch_warnings(record=True) as caught:
+                        warnings.simplefilter("always")
+                        _save_variation(path, result["vertices"], result["faces"],
+                                        item.source.location)
+                    # what a source's file loses in the output's format, once a source:
+                    # without the output's name, the messages of one source are equal
+                    self._relay([(str(w.message).removeprefix(f"{path}: "), w.category,
+                                  w.filename, w.lineno) for w in caught])
                 except InputError as exc:  # this item failed, not the batch
                     row["status"], row["reason"], row["error"] = "failed", "", one_line(exc)
             if result.get("cage") is not None and not self.cages.has(item.source.name):

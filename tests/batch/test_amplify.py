@@ -17,8 +17,11 @@ from builders import ROOT, cagekit
 from cagekit.batch.amplify import amplify, plan_pairs
 from cagekit.batch.collection import find_shapes
 from cagekit.datasets import synthetic
-from cagekit.errors import InputError
+from cagekit.errors import InputError, MeshFileWarning
 from cagekit.io import load_mesh, save_mesh
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "io"))
+from test_pmd import POSITIONS, pmd_bytes  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -245,3 +248,19 @@ def test_green_coordinates_are_recorded_and_a_change_redoes_the_items(tmp_path):
     refused = cagekit("amplify", "synthetic:vases:3", "-o", tmp_path / "x", "--variations",
                       "1", "--method", "scale", "--coords", "green")
     assert refused.returncode == 2 and "--coords green" in refused.stderr
+
+
+def test_what_a_source_loses_in_its_variations_is_said_once_a_source(tmp_path):
+    """A game model (PMD, not written) gives OBJ variations without its UVs: one warning
+    for each source, not one for each of its variations."""
+    collection = tmp_path / "game"
+    collection.mkdir()
+    for name, scale in (("a", 1.0), ("b", 1.5), ("c", 0.7)):
+        (collection / f"{name}.pmd").write_bytes(pmd_bytes(V=POSITIONS * scale))
+    with pytest.warns(MeshFileWarning) as caught:
+        rows = amplify(str(collection), str(tmp_path / "out"), pairs="all", method="scale",
+                       workers=1, max_cd=np.inf)
+    assert len(rows) == 6 and {r["status"] for r in rows} == {"ok"}
+    lost = sorted(str(w.message) for w in caught if "not kept" in str(w.message))
+    assert lost == [f"UVs, normals and bones of {collection / name}.pmd are not kept in OBJ; "
+                    "cagekit writes no PMD" for name in "abc"]
