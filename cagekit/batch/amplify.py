@@ -68,7 +68,7 @@ from cagekit.io import (
     save_deformed,
     save_mesh,
 )
-from cagekit.io.files import atomic_output, one_line, read_text
+from cagekit.io.files import atomic_output, one_line, output_folder, read_text
 from cagekit.metrics import evaluate
 from cagekit.typed import Faces, Vertices
 
@@ -631,7 +631,8 @@ def amplify(collection: str, out_dir: str, *, variations: int | None = None,
     items = _items(plan_pairs(shapes, variations=variations, pairs=pairs,
                               category_by=category_by, seed=seed), shapes)
     for sub in ("variations", "cages") + (() if drop_rejected else ("rejected",)):
-        os.makedirs(os.path.join(out_dir, sub), exist_ok=True)
+        with output_folder(os.path.join(out_dir, sub)):  # one line if it cannot be made
+            pass
     manifest = _Manifest(out_dir)
     order = [(it.source.name, it.target.name) for it in items]
     kept, todo = {}, []

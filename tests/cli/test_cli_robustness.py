@@ -154,6 +154,14 @@ def test_synth_into_a_read_only_folder_exits_2_and_leaves_no_folder(read_only_fo
     assert os.listdir(read_only_folder) == []
 
 
+def test_amplify_into_a_read_only_folder_exits_2(read_only_folder):
+    result = cagekit("amplify", "synthetic:vases:2", "-o", read_only_folder / "amp",
+                     "--variations", "1")
+    assert_bad_input(result, "amp")
+    assert "cannot make the folder" in result.stderr
+    assert os.listdir(read_only_folder) == []
+
+
 def test_an_interrupt_after_the_first_output_removes_what_the_command_made(tmp_path,
                                                                            monkeypatch):
     """fit-cage writes the cage, then its preview: Ctrl-C while drawing removes the new
