@@ -15,6 +15,7 @@ from cagekit.transfer.character import (
     ROOTS,
     SMOOTHNESS,
     CharacterCage,
+    ClassicalFitter,
     cage_oracle,
     check_landmarks_on_mesh,
     classical_fitter,
@@ -27,7 +28,8 @@ from cagekit.transfer.character import (
 )
 from cagekit.transfer.loose_pieces import LoosePieces, find_loose_pieces
 
-__all__ = ["PART_LANDMARKS", "ROOTS", "SMOOTHNESS", "CharacterCage", "LoosePieces",
+__all__ = ["PART_LANDMARKS", "ROOTS", "SMOOTHNESS", "CharacterCage", "ClassicalFitter",
+           "LoosePieces",
            "cage_oracle", "check_landmarks_on_mesh", "classical_fitter", "corresponds",
            "find_loose_pieces", "fit_character", "landmark_parts", "render_grid",
            "template_cage_classical", "transfer"]

@@ -24,7 +24,7 @@ transfer`` (:mod:`cagekit.cli.transfer`). See docs/architecture.md.
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import cast
 
@@ -47,8 +47,8 @@ from cagekit.transfer.surface_binding import SurfaceBinding, bind_surface, check
 from cagekit.typed import Vertices
 
 __all__ = ["CharacterCage", "fit_character", "check_landmarks_on_mesh", "corresponds",
-           "template_cage_classical", "classical_fitter", "transfer", "cage_oracle",
-           "render_grid", "landmark_parts", "PART_LANDMARKS", "ROOTS", "SMOOTHNESS"]
+           "template_cage_classical", "classical_fitter", "ClassicalFitter", "transfer",
+           "cage_oracle", "render_grid", "landmark_parts", "PART_LANDMARKS", "ROOTS", "SMOOTHNESS"]
 
 #: weight of the cage-Laplacian term of the classical template fit (the cage's own units)
 SMOOTHNESS = 1e-2
@@ -304,7 +304,7 @@ def template_cage_classical(template_v: ArrayLike, template_f: ArrayLike | None,
                             cage_v: ArrayLike, cage_f: ArrayLike, pose_v: ArrayLike,
                             pose_f: ArrayLike | None, *, seed: int = 0,
                             smoothness: float = SMOOTHNESS,
-                            fitter: Callable[[np.ndarray], np.ndarray] | None = None,
+                            fitter: ClassicalFitter | None = None,
                             max_evaluations: int = TEMPLATE_EVALUATIONS) -> np.ndarray:
     """The template's deformed cage ``C_(s->t)`` by a per-pair cage fit (no training).
 
@@ -348,7 +348,7 @@ def template_cage_classical(template_v: ArrayLike, template_f: ArrayLike | None,
 
 
 def classical_fitter(template_v: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike, *,
-                     smoothness: float = SMOOTHNESS) -> Callable[[ArrayLike], Vertices]:
+                     smoothness: float = SMOOTHNESS) -> ClassicalFitter:
     """The least-squares template fit of :func:`template_cage_classical`, factored once.
 
     ``min_C |W C - V_pose|^2 + smoothness |L (C - C_s)|^2`` has the same matrix for every
@@ -365,25 +365,48 @@ def classical_fitter(template_v: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike
 
     Returns
     -------
-    callable
+    ClassicalFitter
         ``fitter(pose_v)``: (n_s, 3) pose vertices in the template's vertex order ->
-        (k, 3) float64 ``C_(s->t)``.
+        (k, 3) float64 ``C_(s->t)``; ``fitter.miss(pose_v, C)``: how far the template
+        moved by ``C`` lands from the pose.
     """
     cage_v = as_vertices(cage_v, "cage_v")
     cage_f = check_cage(cage_v, cage_f)
     W = bind(as_vertices(template_v, "template_v"), cage_v, cage_f, check=False).weights
     L = cotangent_laplacian(cage_v, cage_f).toarray()
     r = np.sqrt(float(smoothness))
-    solve = np.linalg.pinv(np.vstack([W, r * L]))
-    anchor = r * (L @ cage_v)
+    return ClassicalFitter(W, np.linalg.pinv(np.vstack([W, r * L])), r * (L @ cage_v))
 
-    def fitter(pose_v: ArrayLike) -> Vertices:
-        C = solve @ np.vstack([np.asarray(pose_v, np.float64), anchor])
+
+class ClassicalFitter:
+    """:func:`classical_fitter`'s result: the factored fit of a template's poses.
+
+    Parameters
+    ----------
+    weights : (n_s, k) float64
+        The template's mean value coordinates in ``C_s``.
+    solve : (k, n_s + k) float64
+        The pseudo-inverse of ``[W; sqrt(smoothness) L]``.
+    anchor : (k, 3) float64
+        ``sqrt(smoothness) L C_s``.
+    """
+
+    def __init__(self, weights: np.ndarray, solve: np.ndarray, anchor: np.ndarray):
+        self.weights, self.solve, self.anchor = weights, solve, anchor
+
+    def __call__(self, pose_v: ArrayLike) -> Vertices:
+        """(n_s, 3) pose vertices -> (k, 3) ``C_(s->t)``."""
+        C = self.solve @ np.vstack([np.asarray(pose_v, np.float64), self.anchor])
         if not np.isfinite(C).all():
             raise FloatingPointError("the cage fit produced NaN or inf positions")
         return C
 
-    return fitter
+    def miss(self, pose_v: ArrayLike, deformed_cage_v: ArrayLike) -> np.ndarray:
+        """(n_s,) distance from each pose vertex to the template vertex moved by the cage:
+        how closely the cage reproduces the template's own pose (a cage whose limbs share
+        faces cannot move them apart, and the character's poses inherit the miss)."""
+        moved = self.weights @ np.asarray(deformed_cage_v, np.float64)
+        return np.linalg.norm(moved - np.asarray(pose_v, np.float64), axis=1)
 
 
 def transfer(character: CharacterCage, deformed_template_cage_v: ArrayLike,

@@ -11,6 +11,7 @@ from click.testing import CliRunner
 
 from cagekit import io
 from cagekit.cli import main as cagekit_main
+from cagekit.cli.transfer import TEMPLATE_MISS_WARN
 from cagekit.coords import bind
 from cagekit.errors import InputError
 from cagekit.geometry.alignment import Similarity
@@ -218,6 +219,18 @@ def test_auto_template_cage(data, tmp_path):
     assert result.exit_code == 0, result.output
     report = json.loads(result.stdout)
     assert report["template_cage"] == "auto" and report["character_cage"]["valid"]
+    # a coarse fitted cage, one the limbs share: its miss of the template's own pose is
+    # reported, and warned about above TEMPLATE_MISS_WARN (the artist cage's is below it)
+    coarse = _run([*inputs, out / "poses", "-o", tmp_path / "coarse", "--cage-faces", "80",
+                   "--json"])
+    assert coarse.exit_code == 0, coarse.output
+    misses = [row["template_miss"] for row in json.loads(coarse.stdout)["poses"]]
+    artist = _run([*_inputs(out), out / "poses", "-o", tmp_path / "artist", "--json"])
+    assert artist.exit_code == 0 and "misses" not in artist.stderr
+    kept = [row["template_miss"] for row in json.loads(artist.stdout)["poses"]]
+    assert max(kept) < TEMPLATE_MISS_WARN < max(misses)
+    over = sum(m > TEMPLATE_MISS_WARN for m in misses)
+    assert f"the template's cage misses {over} of the template's 2 pose(s)" in coarse.stderr
 
 
 def test_a_cage_that_cannot_be_fitted_is_one_line_and_writes_nothing(data, tmp_path):
@@ -288,6 +301,11 @@ def test_classical_template_fit_is_close_to_the_pose(data):
     height = np.ptp(Vt[:, 1])
     moved = np.linalg.norm(Vp - Vt, axis=1).mean() / height
     assert np.linalg.norm(X - Vp, axis=1).mean() / height < moved / 4
+    fitter = dt.classical_fitter(Vt, cage_v, cage_f)
+    np.testing.assert_allclose(fitter(Vp), C, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(fitter.miss(Vp, C), np.linalg.norm(X - Vp, axis=1),
+                               rtol=0, atol=1e-9)
+    assert fitter.miss(X, C).max() < 1e-9  # a pose the cage makes: reproduced exactly
 
 
 def test_unmatched_labels_are_reported(data, tmp_path):
