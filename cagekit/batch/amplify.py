@@ -146,8 +146,12 @@ def _read_pairs(path, by_name):
         pairs.append(tuple(names))
     if unknown:
         shown = ", ".join(sorted(set(unknown))[:5])
+        known = ", ".join(sorted({shape.name for shape in by_name.values()})[:3])
         raise InputError(f"{len(set(unknown))} name(s) not in the collection: {shown}"
-                         + (" ..." if len(set(unknown)) > 5 else ""), path)
+                         + (" ..." if len(set(unknown)) > 5 else "")
+                         + f" (a name is a shape's path below the collection without its "
+                         f"extension, {known} ..., or the short name its outputs take)",
+                         path)
     if not pairs:
         raise InputError("no pairs listed", path)
     return [(by_name[a], by_name[b]) for a, b in pairs]
@@ -167,7 +171,8 @@ def plan_pairs(shapes: Sequence[Shape], *, variations: int | None = None,
         paired with itself.
     pairs : str, optional
         ``"all"`` (every ordered pair) or a CSV file of ``source,target`` names (a header
-        line ``source,target`` is optional).
+        line ``source,target`` is optional): :attr:`Shape.name`, or the short name of
+        :func:`~cagekit.batch.collection.short_names` that the outputs take.
     category_by : {None, "folder"}
         ``"folder"``: pairs only within a category (:attr:`Shape.category`).
     seed : int, default 0
@@ -192,6 +197,8 @@ def plan_pairs(shapes: Sequence[Shape], *, variations: int | None = None,
     if (variations is None) == (pairs is None):
         raise InputError("give either a number of variations or pairs ('all' or a CSV file)")
     by_name = {s.name: s for s in shapes}
+    for name, short in short_names(by_name).items():  # the outputs' names are taken too
+        by_name.setdefault(short, by_name[name])
     groups = _allowed(shapes, category_by)
     if pairs is not None and pairs != "all":
         chosen = _read_pairs(pairs, by_name)

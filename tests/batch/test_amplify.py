@@ -78,8 +78,16 @@ def test_pairs_file_with_unknown_names_exits_2_naming_them(folder, tmp_path):
     result = cagekit("amplify", folder, "-o", tmp_path / "out", "--pairs", listed)
     assert result.returncode == 2
     assert "2 name(s) not in the collection: ghost, nope" in result.stderr
+    assert "low/broken, low/c, tall/a ..." in result.stderr  # what a name looks like
     assert len(result.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "out").exists()
+
+
+def test_a_pairs_file_may_use_the_short_names_the_outputs_take(folder, tmp_path):
+    listed = tmp_path / "pairs.csv"
+    listed.write_text("source,target\na,tall/b\nc,a\n")  # outputs: a__b.obj, c__a.obj
+    plan = plan_pairs(find_shapes(str(folder)), pairs=str(listed))
+    assert [(a.name, b.name) for a, b in plan] == [("tall/a", "tall/b"), ("low/c", "tall/a")]
 
 
 # ------------------------------------------------------------------------------- a batch
