@@ -105,6 +105,9 @@ _METRICS = ("cd", "dcotlap", "parts", "part_nonaffinity_median", "part_nonaffini
 _FIGURES = _METRICS + ("crossing_parts", "crossing_pairs")
 #: the cage ``deform`` fits for a source (as :func:`cagekit.deform` does by default)
 CAGE_FACES = 200
+#: characters of a contact sheet's pair title (about what a tile's 10-point bold line
+#: holds; the sheet cuts a wider one further, :func:`cagekit.batch.sheet.draw_contact_sheet`)
+_SHEET_TITLE_CHARS = 34
 
 #: a trained model's deformation, ``deformer(V_src, F_src, V_tgt, F_tgt, seed)``
 #: (:class:`cagekit_learn.inference.ModelDeformer`)
@@ -1140,7 +1143,8 @@ def contact_sheet(rows: Sequence[dict[str, Any]], items: Sequence[Item], folder:
             continue
         tiles.append(Tile(load_shape_of(item.source.location),
                           load_shape_of(item.target.location), load_mesh(file),
-                          pair_title(short[row["source"]], short[row["target"]]),
+                          pair_title(short[row["source"]], short[row["target"]],
+                                     width=_SHEET_TITLE_CHARS),
                           _decisive_figures(row), row["status"], row.get("reason", "")))
         if len(tiles) == limit:
             break
@@ -1150,8 +1154,8 @@ def contact_sheet(rows: Sequence[dict[str, Any]], items: Sequence[Item], folder:
 
 
 def pair_title(source: str, target: str, width: int = 40) -> str:
-    """A pair's caption: ``source -> target``, each name cut in its middle when the two do
-    not fit in ``width`` characters.
+    """A pair's caption: ``source -> target``, names cut in their middle when the two do
+    not fit in ``width`` characters: the longer one first, down to half the room each.
 
     Parameters
     ----------
@@ -1169,15 +1173,23 @@ def pair_title(source: str, target: str, width: int = 40) -> str:
     'antiqueChair → chair2'
     >>> pair_title("a" * 30, "b" * 30)
     'aaaaaaaa...aaaaaaa → bbbbbbbb...bbbbbbb'
+    >>> pair_title("stool", "kush_nuba_camp_bench.dae.cached", width=34)
+    'stool → kush_nuba_ca....dae.cached'
     """
-    half = (width - 3) // 2
-    names = [n if len(source) + len(target) + 3 <= width or len(n) <= half
-             else n[: (half - 3 + 1) // 2] + "..." + n[len(n) - (half - 3) // 2:]
-             for n in (source, target)]
+    room = width - 3
+    if len(source) + len(target) <= room:
+        return f"{source} → {target}"
+    shorter = min(len(source), len(target), room // 2)
+    rooms = (shorter, room - shorter) if len(source) <= len(target) else (room - shorter,
+                                                                          shorter)
+    names = [n if len(n) <= k else n[: (k - 2) // 2] + "..." + n[len(n) - (k - 3) // 2:]
+             for n, k in zip((source, target), rooms)]
     return f"{names[0]} → {names[1]}"
 
 
 def _decisive_figures(row: dict[str, Any]) -> str:
-    """The figures the filter decides on, one line."""
-    return (f"CD x1e2 {100 * row['cd']:.2f} · worst part "
-            f"{100 * row['part_nonaffinity_worst']:.2f}% · crossing {row['crossing_parts']}")
+    """The figures the filter decides on, one line (a source of one part has no worst part
+    to decide on: its bend is in the manifest, and the sheet says "one part")."""
+    parts = (f"worst part {100 * row['part_nonaffinity_worst']:.2f}%" if row["parts"] >= 2
+             else "one part")
+    return f"CD x1e2 {100 * row['cd']:.2f} · {parts} · crossing {row['crossing_parts']}"

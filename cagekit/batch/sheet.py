@@ -183,8 +183,9 @@ def _draw_tile(fig, tile: Tile, origin, sheet, scratch: str) -> None:
               for text in textwrap.wrap(verdict, _BOLD_CHARS)[:2]]
     top = y0 + text_h - 4
     for text, size, weight, ink in lines:
-        fig.text((x0 + 6) / sheet[0], top / sheet[1], text, ha="left", va="top",
-                 fontsize=size, fontweight=weight, color=ink, parse_math=False)
+        fig.text((x0 + 6) / sheet[0], top / sheet[1], _fit_pixels(text, size, weight, w - 12),
+                 ha="left", va="top", fontsize=size, fontweight=weight, color=ink,
+                 parse_math=False)
         top -= size + 6
 
 
@@ -200,6 +201,22 @@ def _picture(fig, mesh, corner, side: int, sheet, scratch: str, label: str | Non
     if label:
         ax.text(0.08, 0.95, label, transform=ax.transAxes, ha="left", va="top", fontsize=8,
                 color="0.4", parse_math=False)
+
+
+def _fit_pixels(text: str, size: float, weight: str, pixels: float) -> str:
+    """``text`` cut in the middle (:func:`_fit`) until it is at most ``pixels`` wide, drawn
+    at ``size`` points and ``weight`` on the sheet: a count of characters does not bound
+    a width (``stool → kush_nuba_camp_bench`` ran into the next tile)."""
+    from matplotlib.font_manager import FontProperties
+    from matplotlib.textpath import TextPath
+
+    font = FontProperties(size=size, weight=weight)
+    for width in range(len(text), 3, -1):
+        fitted = _fit(text, width)
+        extent = TextPath((0, 0), fitted, prop=font).get_extents()
+        if extent.x1 * _DPI / 72 <= pixels:
+            return fitted
+    return _fit(text, 4)
 
 
 def _fit(text: str, width: int) -> str:

@@ -46,6 +46,36 @@ def test_pair_titles_fit_and_keep_both_ends():
     long = pair_title("blendswap-cc-0/chairWithCushion", "blendswap-cc-by/chairWithCushion")
     assert len(long) <= 40 and long.startswith("blends") and "Cushion →" in long
     assert long.endswith("Cushion")
+    # a short name leaves its room to the long one
+    title = pair_title("stool", "kush_nuba_camp_bench.dae.cached", width=34)
+    assert len(title) == 34 and title.startswith("stool → kush_nuba_")
+    assert title.endswith(".dae.cached")
+
+
+def test_a_one_part_source_shows_no_worst_part_the_filter_ignores():
+    from cagekit.batch.amplify import _decisive_figures
+
+    row = {"cd": 0.0354, "parts": 1, "part_nonaffinity_worst": 0.0578, "crossing_parts": 0}
+    assert _decisive_figures(row) == "CD x1e2 3.54 · one part · crossing 0"
+    assert _decisive_figures({**row, "parts": 3}) == (
+        "CD x1e2 3.54 · worst part 5.78% · crossing 0")
+
+
+def test_a_line_wider_than_its_tile_is_cut_to_fit_in_pixels():
+    """A count of characters does not bound a width: W is wider than i."""
+    from matplotlib.font_manager import FontProperties
+    from matplotlib.textpath import TextPath
+
+    from cagekit.batch.sheet import _fit_pixels
+
+    def pixels(text):
+        path = TextPath((0, 0), text, prop=FontProperties(size=10, weight="bold"))
+        return path.get_extents().x1 * 100 / 72
+
+    assert _fit_pixels("i" * 30, 10, "bold", 288) == "i" * 30
+    wide = _fit_pixels("W" * 30, 10, "bold", 288)
+    assert pixels("W" * 30) > 288 >= pixels(wide) > 240
+    assert wide.startswith("WWWW") and "..." in wide and wide.endswith("WWWW")
 
 
 def test_outputs_are_named_without_the_repeated_stem(tmp_path):
