@@ -199,7 +199,8 @@ def write(out_dir, *, poses: int = 20, train_poses: int = 1000, seed: int = 0,
     Parameters
     ----------
     out_dir : str or os.PathLike
-        Created if missing; files already there are replaced (atomically).
+        Created if missing; files already there are replaced (atomically), and the
+        numbered poses of an earlier run beyond this run's counts are removed.
     poses, train_poses : int
         Test poses (with ground truth per body) and training poses of the template.
     seed : int
@@ -249,6 +250,7 @@ def write(out_dir, *, poses: int = 20, train_poses: int = 1000, seed: int = 0,
             pose = humanoid.random_pose(seed + i)
             io.save_mesh(out / "train" / f"pose_{i:04d}.ply", template.pose(pose),
                          template.faces)
+    _remove_stale_poses(out, poses, train_poses)
     summary = {"out_dir": str(out), "bodies": list(bodies), "characters": list(novel),
                "poses": poses, "reverse_poses": len(REVERSE_POSES) if reverse else 0,
                "train_poses": train_poses, "landmarks": len(names), "cage": cage,
@@ -259,6 +261,20 @@ def write(out_dir, *, poses: int = 20, train_poses: int = 1000, seed: int = 0,
         json.dump(summary, fh, indent=2)
         fh.write("\n")
     return summary
+
+
+def _remove_stale_poses(out: Path, poses: int, train_poses: int) -> list[Path]:
+    """Remove the numbered poses an earlier run into ``out`` wrote beyond this run's counts
+    (``poses/pose_005.obj`` after a rerun with ``--poses 5``): ``cagekit transfer ...
+    poses/`` would take them for this run's. Only files named as this module names them go.
+    Returns the files removed."""
+    stale = [f for folder in [out / "poses", *sorted((out / "truth").glob("*"))]
+             for f in folder.glob("pose_[0-9][0-9][0-9].obj") if int(f.stem[5:]) >= poses]
+    stale += [f for f in (out / "train").glob("pose_[0-9][0-9][0-9][0-9].ply")
+              if int(f.stem[5:]) >= train_poses]
+    for f in stale:
+        f.unlink()
+    return stale
 
 
 def _write_characters(out, names, bodies, novel, resolution, faces, seed, truth) -> dict:

@@ -95,6 +95,19 @@ def test_only_what_the_transfer_recipe_reads_is_written(tmp_path):
     assert summary["truth"] is False and summary["train_poses"] == 0
 
 
+def test_a_rerun_with_fewer_poses_leaves_none_of_the_earlier_run_s(tmp_path):
+    run = dict(train_poses=2, landmarks=40, resolution=0.5, bodies=(), novel=("relaxed",),
+               reverse=False)
+    humanoid_data.write(tmp_path, poses=3, **run)
+    (tmp_path / "poses" / "pose_9.obj").write_text("not ours\n")  # not named as ours
+    humanoid_data.write(tmp_path, poses=2, **{**run, "train_poses": 1})
+    assert sorted(p.name for p in (tmp_path / "poses").iterdir()) == [
+        "pose_000.obj", "pose_001.obj", "pose_9.obj"]
+    assert sorted(p.name for p in (tmp_path / "truth" / "relaxed").glob("pose_*")) == [
+        "pose_000.obj", "pose_001.obj"]
+    assert [p.name for p in (tmp_path / "train").iterdir()] == ["pose_0000.ply"]
+
+
 def test_characters_are_chosen_by_name_and_unknown_names_refused():
     assert humanoid_data.choose_characters("relaxed, stocky,a_pose") == (
         ("stocky",), ("relaxed", "a_pose"))
