@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import re
 from pathlib import Path
 
 import click
@@ -268,10 +269,14 @@ def _remove_stale_poses(out: Path, poses: int, train_poses: int) -> list[Path]:
     (``poses/pose_005.obj`` after a rerun with ``--poses 5``): ``cagekit transfer ...
     poses/`` would take them for this run's. Only files named as this module names them go.
     Returns the files removed."""
+    def numbered(folder: Path, ext: str, digits: int, count: int) -> list[Path]:
+        name = re.compile(rf"pose_(\d{{{digits},}}){ext}")  # as f"pose_{i:0{digits}d}"
+        return [f for f in folder.glob(f"pose_*{ext}")
+                if (m := name.fullmatch(f.name)) and int(m.group(1)) >= count]
+
     stale = [f for folder in [out / "poses", *sorted((out / "truth").glob("*"))]
-             for f in folder.glob("pose_[0-9][0-9][0-9].obj") if int(f.stem[5:]) >= poses]
-    stale += [f for f in (out / "train").glob("pose_[0-9][0-9][0-9][0-9].ply")
-              if int(f.stem[5:]) >= train_poses]
+             for f in numbered(folder, ".obj", 3, poses)]
+    stale += numbered(out / "train", ".ply", 4, train_poses)
     for f in stale:
         f.unlink()
     return stale

@@ -92,7 +92,7 @@ MAX_CROSSINGS = 0
 #: the manifest's columns, in order. ``method`` is the batch's; ``deformed_by`` what made
 #: the item (:attr:`cagekit.DeformResult.method`): with ``model``, ``learned``, or ``scale``
 #: where the network's result was further from the target than the box scaling and
-#: the scaling was handed on instead, or ``cage`` after a fall back
+#: the scaling was handed on instead, ``learned+refine``, or ``cage`` after a fall back
 COLUMNS = ("source", "target", "output", "method", "deformed_by", "coords", "seed", "status",
            "reason", "cd", "dcotlap", "parts", "part_nonaffinity_median",
            "part_nonaffinity_worst", "planarity_p95_deg", "crossing_parts", "crossing_pairs",
@@ -105,6 +105,9 @@ _METRICS = ("cd", "dcotlap", "parts", "part_nonaffinity_median", "part_nonaffini
 _FIGURES = _METRICS + ("crossing_parts", "crossing_pairs")
 #: the cage ``deform`` fits for a source (as :func:`cagekit.deform` does by default)
 CAGE_FACES = 200
+#: the error of an item whose worker died (killed, out of memory, a crash): not the item's
+#: own failure, so a rerun does it again
+_WORKER_FAILED = "the worker failed"
 #: characters of a contact sheet's pair title (about what a tile's 10-point bold line
 #: holds; the sheet cuts a wider one further, :func:`cagekit.batch.sheet.draw_contact_sheet`)
 _SHEET_TITLE_CHARS = 34
@@ -157,7 +160,9 @@ def _read_pairs(path, by_name):
                          path)
     if not pairs:
         raise InputError("no pairs listed", path)
-    return [(by_name[a], by_name[b]) for a, b in pairs]
+    resolved = [(by_name[a], by_name[b]) for a, b in pairs]
+    # a pair listed twice (under two spellings, say) is one item
+    return list({(a.name, b.name): (a, b) for a, b in resolved}.values())
 
 
 def plan_pairs(shapes: Sequence[Shape], *, variations: int | None = None,
@@ -202,6 +207,7 @@ def plan_pairs(shapes: Sequence[Shape], *, variations: int | None = None,
     by_name = {s.name: s for s in shapes}
     for name, short in short_names(by_name).items():  # the outputs' names are taken too
         by_name.setdefault(short, by_name[name])
+        by_name.setdefault(short.replace("/", "-"), by_name[name])  # as in file names
     groups = _allowed(shapes, category_by)
     if pairs is not None and pairs != "all":
         chosen = _read_pairs(pairs, by_name)
@@ -489,8 +495,8 @@ def _done(row, item, method, seed, coords, folder, drop_rejected) -> bool:
             and row.get("output") == item.output)
     if not same:
         return False
-    if row["status"] == "failed":
-        return True
+    if row["status"] == "failed":  # the item's own failure; a dead worker's is redone
+        return not str(row.get("error", "")).startswith(_WORKER_FAILED)
     if "crossing_parts" not in row:  # an earlier version's row: no crossing test
         return False
     return os.path.exists(os.path.join(folder, "variations", item.output)) or (
@@ -1026,12 +1032,15 @@ class _Runner:
                     running[submit(deform_item, *self._args(item))] = item
                 done, _ = cf.wait(running, timeout=_INTERRUPT_POLL,
                                   return_when=cf.FIRST_COMPLETED)
+                # before recording: a SIGTERM sent to the whole group (`timeout`) kills the
+                # workers too, and their items would be recorded as failed
+                interrupted()
                 for future in done:
                     item = running.pop(future)
                     try:
                         result = future.result()
                     except Exception as exc:  # noqa: BLE001 - a worker died (memory, crash)
-                        result = {"status": "failed", "error": f"the worker failed: "
+                        result = {"status": "failed", "error": f"{_WORKER_FAILED}: "
                                   f"{one_line(exc)}", "cage": None, "seconds": 0.0,
                                   "cage_seconds": 0.0}
                     fitting.discard(item.source.name)
@@ -1171,10 +1180,12 @@ def pair_title(source: str, target: str, width: int = 40) -> str:
     --------
     >>> pair_title("antiqueChair", "chair2")
     'antiqueChair → chair2'
-    >>> pair_title("a" * 30, "b" * 30)
-    'aaaaaaaa...aaaaaaa → bbbbbbbb...bbbbbbb'
-    >>> pair_title("stool", "kush_nuba_camp_bench.dae.cached", width=34)
-    'stool → kush_nuba_ca....dae.cached'
+    >>> title = pair_title("a" * 30, "b" * 30)
+    >>> len(title), title.count("a"), title.count("b")
+    (40, 15, 16)
+    >>> title = pair_title("stool", "kush_nuba_camp_bench.dae.cached", width=34)
+    >>> len(title), title[:18], title[-11:]
+    (34, 'stool → kush_nuba_', '.dae.cached')
     """
     room = width - 3
     if len(source) + len(target) <= room:

@@ -206,16 +206,26 @@ def _picture(fig, mesh, corner, side: int, sheet, scratch: str, label: str | Non
 def _fit_pixels(text: str, size: float, weight: str, pixels: float) -> str:
     """``text`` cut in the middle (:func:`_fit`) until it is at most ``pixels`` wide, drawn
     at ``size`` points and ``weight`` on the sheet: a count of characters does not bound
-    a width (``stool → kush_nuba_camp_bench`` ran into the next tile)."""
+    a width (``stool → kush_nuba_camp_bench`` ran into the next tile). A pair title
+    (``source → target``) keeps its arrow: the longer name is cut first."""
     from matplotlib.font_manager import FontProperties
     from matplotlib.textpath import TextPath
 
     font = FontProperties(size=size, weight=weight)
+
+    def fits(candidate: str) -> bool:  # `$` escaped: TextPath would read $...$ as maths
+        path = TextPath((0, 0), candidate.replace("$", r"\$"), prop=font)
+        return path.get_extents().x1 * _DPI / 72 <= pixels
+
+    names = text.split(" → ")
+    if len(names) == 2:
+        widths = [len(name) for name in names]
+        while not fits(" → ".join(map(_fit, names, widths))) and max(widths) > 4:
+            widths[0 if widths[0] >= widths[1] else 1] -= 1
+        text = " → ".join(map(_fit, names, widths))
     for width in range(len(text), 3, -1):
-        fitted = _fit(text, width)
-        extent = TextPath((0, 0), fitted, prop=font).get_extents()
-        if extent.x1 * _DPI / 72 <= pixels:
-            return fitted
+        if fits(_fit(text, width)):
+            return _fit(text, width)
     return _fit(text, 4)
 
 

@@ -101,7 +101,8 @@ class Interrupted(BaseException):
 
 class OneLineErrors:
     """Mixin for a click command or group: errors are one line on stderr, with fixed exit
-    statuses (0 success, 1 failure, 2 bad input or usage, 130 interrupted); ``--debug``
+    statuses (0 success, 1 failure, 2 bad input or usage, 130 interrupted, 143 terminated
+    by SIGTERM); ``--debug``
     (or ``CAGEKIT_DEBUG=1``) adds the traceback. Warnings are one line each, SIGINT one
     line. The applications in ``apps/`` use it too.
     """
@@ -118,8 +119,8 @@ class OneLineErrors:
     def main(self, args: Sequence[str] | None = None, prog_name: str | None = None,
              complete_var: str | None = None, standalone_mode: bool = True,
              **extra: Any) -> int:
-        """Run the command line; exit with 0, 1 (failure), 2 (bad input or usage) or 130
-        (interrupted)."""
+        """Run the command line; exit with 0, 1 (failure), 2 (bad input or usage), 130
+        (interrupted) or 143 (SIGTERM)."""
         args = list(sys.argv[1:] if args is None else args)
         _CURRENT.clear()
         _ARGUMENTS.clear()

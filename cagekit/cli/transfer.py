@@ -334,13 +334,13 @@ def _transfer_poses(char, template, template_cage, pose_paths, pose_meshes, mode
 
 def _warn_template_misses(pose_paths, misses) -> None:
     """One warning when the template's cage cannot reproduce some of its own poses."""
-    over = [(m, path) for m, path in zip(misses, pose_paths)
-            if m is not None and m > TEMPLATE_MISS_WARN]
+    measured = [(m, path) for m, path in zip(misses, pose_paths) if m is not None]
+    over = [(m, path) for m, path in measured if m > TEMPLATE_MISS_WARN]
     if not over:
         return
     worst, where = max(over, key=lambda pair: pair[0])
     warnings.warn(CagekitWarning(
-        f"the template's cage misses {len(over)} of the template's {len(pose_paths)} "
+        f"the template's cage misses {len(over)} of the template's {len(measured)} "
         f"pose(s) by more than {100 * TEMPLATE_MISS_WARN:.0f}% of its size (worst "
         f"{Path(where).name}: {100 * worst:.1f}%): where limbs share its faces it cannot "
         "move them apart, and the character's poses miss as much or more; give a cage with "

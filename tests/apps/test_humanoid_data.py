@@ -100,6 +100,7 @@ def test_a_rerun_with_fewer_poses_leaves_none_of_the_earlier_run_s(tmp_path):
                reverse=False)
     humanoid_data.write(tmp_path, poses=3, **run)
     (tmp_path / "poses" / "pose_9.obj").write_text("not ours\n")  # not named as ours
+    (tmp_path / "poses" / "pose_1000.obj").write_text("v 0 0 0\n")  # a 1,001-pose run's
     humanoid_data.write(tmp_path, poses=2, **{**run, "train_poses": 1})
     assert sorted(p.name for p in (tmp_path / "poses").iterdir()) == [
         "pose_000.obj", "pose_001.obj", "pose_9.obj"]

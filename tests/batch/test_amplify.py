@@ -85,9 +85,19 @@ def test_pairs_file_with_unknown_names_exits_2_naming_them(folder, tmp_path):
 
 def test_a_pairs_file_may_use_the_short_names_the_outputs_take(folder, tmp_path):
     listed = tmp_path / "pairs.csv"
-    listed.write_text("source,target\na,tall/b\nc,a\n")  # outputs: a__b.obj, c__a.obj
+    # outputs a__b.obj, c__a.obj; the first pair listed again under its full names
+    listed.write_text("source,target\na,tall/b\nc,a\ntall/a,tall/b\n")
     plan = plan_pairs(find_shapes(str(folder)), pairs=str(listed))
     assert [(a.name, b.name) for a, b in plan] == [("tall/a", "tall/b"), ("low/c", "tall/a")]
+    # x/chair and y/chair keep both parts, and their files say x-chair: both spellings
+    alike = tmp_path / "alike"
+    for name in ("x/chair", "y/chair", "y/table"):
+        (alike / name).parent.mkdir(parents=True, exist_ok=True)
+        save_mesh(alike / f"{name}.obj", *synthetic.vase(seed=0, resolution=0.5))
+    listed.write_text("x-chair,table\ny/chair,x-chair\n")
+    plan = plan_pairs(find_shapes(str(alike)), pairs=str(listed))
+    assert [(a.name, b.name) for a, b in plan] == [("x/chair", "y/table"),
+                                                   ("y/chair", "x/chair")]
 
 
 # ------------------------------------------------------------------------------- a batch
@@ -214,6 +224,24 @@ def test_a_changed_input_redoes_its_items_only(tmp_path):
                 ) == changed
         if not changed:
             assert a == b
+
+
+def test_a_dead_worker_s_item_is_redone_an_item_s_own_failure_kept(tmp_path):
+    collection = tmp_path / "shapes"
+    collection.mkdir()
+    for i in range(2):
+        save_mesh(collection / f"v{i}.obj", *synthetic.vase(seed=i, resolution=0.5))
+    out = tmp_path / "out"
+    first = amplify(str(collection), str(out), pairs="all", method="scale", workers=1)
+    manifest = json.loads((out / "manifest.json").read_text())
+    errors = ["the worker failed: A process in the process pool was terminated abruptly",
+              "source v0: contains no vertices"]
+    for row, error in zip(manifest["items"], errors):
+        row.update(status="failed", error=error)
+    (out / "manifest.json").write_text(json.dumps(manifest))
+    again = amplify(str(collection), str(out), pairs="all", method="scale", workers=1)
+    assert again[0]["status"] == "ok" and again[0]["cd"] == first[0]["cd"]  # redone
+    assert again[1]["status"] == "failed" and again[1]["error"] == errors[1]  # kept
 
 
 def test_sigint_stops_a_pool_batch_cleanly(tmp_path):

@@ -240,13 +240,18 @@ def _ctrl_c(process):
     os.killpg(process.pid, signal.SIGINT)  # as a terminal sends Ctrl-C: to the group
 
 
-def _terminate(process):
-    process.send_signal(signal.SIGTERM)  # as `timeout` and `kill` send it: to the batch only
+def _kill(process):
+    process.send_signal(signal.SIGTERM)  # as `kill PID` sends it: to the batch only
+
+
+def _timeout(process):
+    os.killpg(process.pid, signal.SIGTERM)  # as `timeout` sends it: to the group, workers too
 
 
 @two_cores
 @pytest.mark.parametrize("send, status, line", [(_ctrl_c, 130, "interrupted"),
-                                                (_terminate, 143, "terminated")])
+                                                (_kill, 143, "terminated"),
+                                                (_timeout, 143, "terminated")])
 def test_ctrl_c_ends_the_batch_with_one_line_and_no_process_left(tmp_path, send, status,
                                                                  line):
     process = start_batch(tmp_path / "out", stderr=subprocess.PIPE)
@@ -268,7 +273,10 @@ def test_ctrl_c_ends_the_batch_with_one_line_and_no_process_left(tmp_path, send,
     assert process.returncode == status, stderr
     errors = [m for m in one_line_messages(stderr) if ": error: " in m]
     assert errors == [f"cagekit amplify: error: {line}"] == one_line_messages(stderr)[-1:]
-    assert len(manifest_of(tmp_path / "out")["items"]) < 6  # it stopped, not ran to the end
+    items = manifest_of(tmp_path / "out")["items"]
+    assert len(items) < 6  # it stopped, not ran to the end
+    # the workers the signal killed with it are not its items' failures
+    assert [row["status"] for row in items if row["status"] == "failed"] == []
 
 
 #: runs ``cagekit amplify`` with a Ctrl-C that lands inside ``concurrent.futures.wait``

@@ -76,6 +76,11 @@ def test_a_line_wider_than_its_tile_is_cut_to_fit_in_pixels():
     wide = _fit_pixels("W" * 30, 10, "bold", 288)
     assert pixels("W" * 30) > 288 >= pixels(wide) > 240
     assert wide.startswith("WWWW") and "..." in wide and wide.endswith("WWWW")
+    # a pair title keeps its arrow, the longer name cut first; a $ is not maths
+    title = _fit_pixels("WoodenChairMMMMMMMM → ModernWWWWWChairWW", 10, "bold", 288)
+    source, target = title.split(" → ")
+    assert pixels(title) <= 288 and source.startswith("Wood") and target.endswith("WW")
+    assert _fit_pixels("a$\\foo$b → c", 10, "bold", 288) == "a$\\foo$b → c"
 
 
 def test_outputs_are_named_without_the_repeated_stem(tmp_path):
