@@ -455,11 +455,24 @@ def check_output(out: str, inputs: Iterable[str | None],
     folder = os.path.dirname(os.path.abspath(out))
     if not os.path.isdir(folder):
         raise InputError(f"output folder {folder} does not exist", out)
+    check_writable(out)
     if extensions is not None:
         ext = os.path.splitext(out)[1].lower()
         if ext not in extensions:
             raise InputError(f"unknown output format {ext or '(no extension)'!r}; "
                              f"use one of {', '.join(sorted(extensions))}", out)
+
+
+def check_writable(out: str | os.PathLike) -> None:
+    """Refuse (InputError), before any work, an output whose folder, or the nearest folder
+    above it that exists (where the missing ones would be made), cannot be written: a
+    read-only file system, no permission."""
+    folder = os.path.dirname(os.path.abspath(out))
+    while not os.path.exists(folder) and os.path.dirname(folder) != folder:
+        folder = os.path.dirname(folder)
+    if os.path.isdir(folder) and not os.access(folder, os.W_OK):
+        raise InputError(f"cannot write in {folder} (a read-only file system or no "
+                         "permission)", out)
 
 
 def shape_writer(out: str, has_faces: bool,

@@ -16,6 +16,7 @@ import click
 
 from cagekit.cli.common import (
     COORDINATE_METHODS,
+    check_writable,
     debug_option,
     emit_json,
     json_option,
@@ -220,6 +221,7 @@ def _check_outputs(out, names, grid_path, inputs):
             raise InputError("the picture is written as PNG: give a .png file name",
                              grid_path)
     for output in outputs:
+        check_writable(output)
         for given in inputs:
             if same_file(str(output), given):
                 raise InputError(f"refusing to overwrite the input file {given}; choose "

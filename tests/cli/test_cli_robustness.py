@@ -162,6 +162,24 @@ def test_amplify_into_a_read_only_folder_exits_2(read_only_folder):
     assert os.listdir(read_only_folder) == []
 
 
+def test_an_output_that_cannot_be_written_is_refused_before_any_work(read_only_folder,
+                                                                     monkeypatch):
+    """fit-cage (and every command that writes a file) says so before it fits."""
+    from click.testing import CliRunner
+
+    import cagekit.cage.fitting
+    from cagekit.cli import main
+
+    def never(*args, **kwargs):
+        raise AssertionError("the cage was fitted")
+
+    monkeypatch.setattr(cagekit.cage.fitting, "fit_cage", never)
+    result = CliRunner().invoke(main, ["fit-cage", SHAPE, "-o", str(read_only_folder / "c.obj")])
+    assert result.exit_code == 2, result.output
+    assert f"cannot write in {read_only_folder}" in result.output
+    assert os.listdir(read_only_folder) == []
+
+
 def test_an_interrupt_after_the_first_output_removes_what_the_command_made(tmp_path,
                                                                            monkeypatch):
     """fit-cage writes the cage, then its preview: Ctrl-C while drawing removes the new

@@ -399,6 +399,18 @@ def test_grid_in_a_missing_folder_is_refused_before_any_work(data, tmp_path):
     assert not (tmp_path / "res").exists()
 
 
+def test_an_output_folder_that_cannot_be_written_is_refused_before_any_work(
+        data, tmp_path, read_only, monkeypatch):
+    out, _ = data
+    monkeypatch.setattr(dt, "fit_character", None)  # never reached
+    folder = tmp_path / "ro"
+    folder.mkdir()
+    with read_only(folder):
+        result = _run([*_inputs(out), out / "poses", "-o", folder / "res"])
+    assert result.exit_code == 2, result.output
+    assert f"cannot write in {folder}" in result.output
+
+
 def test_grid_that_is_not_png_is_refused(data, tmp_path):
     # the picture is PNG: a .jpg name would get PNG bytes
     out, _ = data
