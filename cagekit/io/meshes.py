@@ -542,10 +542,29 @@ def _read_ply(path):
     return V, _triangulate(flat, sizes, len(V), path)
 
 
+def _check_stl(path):
+    """Refuse a file named ``.stl`` that is neither an ASCII STL (``solid ...``) nor a
+    binary one (80-byte header, triangle count, 50 bytes a triangle), saying what it looks
+    like: trimesh reads such a file as an empty mesh, and the error said "no vertices"."""
+    with open(path, "rb") as fh:
+        head = fh.read(84)
+    size = os.path.getsize(path)
+    if head.lstrip().lower().startswith(b"solid") or (
+            len(head) == 84 and size == 84 + 50 * int.from_bytes(head[80:84], "little")):
+        return
+    text = head.decode("ascii", "replace").lstrip()
+    looks = (" (it looks like an OBJ file: rename it .obj)"
+             if text.startswith(("v ", "#", "o ", "g ", "mtllib")) else "")
+    raise MeshFileError("is not an STL file: neither ASCII ('solid ...') nor binary (a "
+                        f"header, a triangle count and 50 bytes a triangle){looks}", path)
+
+
 def _read_with_trimesh(path):
     import trimesh  # 0.5 s to import: only for the formats that need it
 
     check_file(path, MeshFileError)
+    if extension(path) == ".stl":
+        _check_stl(path)
     loaded = trimesh.load(
         os.fspath(path), file_type=extension(path)[1:], process=False, maintain_order=True
     )
