@@ -99,3 +99,5 @@ def render(ctx: click.Context, meshes: tuple[str, ...], out: str, cages: tuple[s
         titles = shortest_unique_names(meshes)  # girl/pose_3.obj, suit/pose_3.obj
     render_meshes(shapes, out, cages=cage_shapes, titles=list(titles), caption=caption,
                   views=views, size=size, up=up, same_scale=same_scale)
+    rows = f", {len(views)} rows" if len(views) > 1 else ""
+    click.echo(f"wrote {out}: {len(shapes)} panel(s){rows}")

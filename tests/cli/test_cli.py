@@ -288,6 +288,7 @@ def test_render_png(tmp_path, applied):
     result = cagekit("render", SHAPE, out, "--cage", CAGE, "--cage", DEFORMED, "-o", png,
                      "--size", "200x180", "--title", "before", "--title", "after")
     assert result.returncode == 0, result.stderr
+    assert result.stdout == f"wrote {png}: 2 panel(s)\n"  # as every command says
     img = imread(png)
     assert img.shape[:2] == (180, 400)
     assert img[..., :3].std() > 0.05
