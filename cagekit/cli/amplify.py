@@ -139,7 +139,8 @@ def amplify(ctx: click.Context, collection: str, out: str, variations: int | Non
                    "manifest": os.path.join(out, "manifest.csv"), "contact_sheet": sheet})
     else:
         click.echo(f"{len(rows)} items: {counts['ok']} ok, {counts['rejected']} rejected, "
-                   f"{counts['failed']} failed; manifest {os.path.join(out, 'manifest.csv')}")
+                   f"{counts['failed']} failed; manifest {os.path.join(out, 'manifest.csv')}"
+                   + (f"; contact sheet {sheet}" if sheet else ""))
     if counts["failed"]:
         ctx.exit(SOME_FAILED)
 

@@ -127,8 +127,12 @@ def test_batch_outputs_broken_file_filter_and_json(folder, tmp_path):
     assert imread(sheet).shape[:2] == (270, 2 * 300)  # two tiles on one line
     # a filter that rejects everything moves the kept meshes to rejected/, redoing nothing
     again = cagekit("amplify", folder, "-o", out, "--pairs", "all", "--category-by",
-                    "folder", "--method", "scale", "--workers", "1", "--max-cd", "0")
+                    "folder", "--method", "scale", "--workers", "1", "--max-cd", "0",
+                    "--contact-sheet", tmp_path / "again.png")
     assert again.returncode == 3
+    assert again.stdout.strip() == (f"4 items: 0 ok, 2 rejected, 2 failed; manifest "
+                                    f"{out / 'manifest.csv'}; contact sheet "
+                                    f"{tmp_path / 'again.png'}")
     rows = {(r["source"], r["target"]): r for r in rows_of(out)}
     assert rows[("tall/a", "tall/b")]["status"] == "rejected"
     assert rows[("tall/a", "tall/b")]["seconds"] == good["seconds"]  # not redone
