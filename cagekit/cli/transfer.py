@@ -147,6 +147,7 @@ def transfer(ctx: click.Context, template: str, template_cage: str, template_lan
                    f"{out}; character cage valid ({fit.rounds} enclosure round(s)), "
                    f"largest landmark error {fit.landmark_errors.max():.3g}"
                    + _binding_summary(fit.checks["coupled"], fit.checks["mended"])
+                   + (f"; grid {grid_path}" if grid_path else "")
                    + (f"; the grid leaves out {len(left_out)} of {len(rows)} poses "
                       f"({', '.join(left_out)})" if left_out else ""))
 

@@ -411,6 +411,17 @@ def test_an_output_folder_that_cannot_be_written_is_refused_before_any_work(
     assert f"cannot write in {folder}" in result.output
 
 
+def test_the_summary_names_the_grid_it_drew(data, tmp_path):
+    out, _ = data
+    grid = tmp_path / "grid.png"
+    result = _run([*_inputs(out), out / "poses" / "pose_000.obj", "-o", tmp_path / "res",
+                   "--grid", grid])
+    assert result.exit_code == 0, result.output
+    assert result.stdout.startswith(f"wrote 1 pose(s), character_cage.obj and report.json "
+                                    f"to {tmp_path / 'res'};")
+    assert f"; grid {grid}" in result.stdout and grid.exists()
+
+
 def test_grid_that_is_not_png_is_refused(data, tmp_path):
     # the picture is PNG: a .jpg name would get PNG bytes
     out, _ = data
