@@ -54,7 +54,7 @@ from cagekit.batch.collection import (
     short_names,
 )
 from cagekit.batch.crossing import part_crossings
-from cagekit.batch.sheet import SHEET_COLUMNS, Tile, draw_contact_sheet
+from cagekit.batch.sheet import SHEET_COLUMNS, Tile, cut_middle, draw_contact_sheet
 from cagekit.cage.fitting import fit_cage
 from cagekit.deformation import DeformOptions, DeformResult, deform
 from cagekit.errors import CagekitWarning, InputError
@@ -1193,9 +1193,7 @@ def pair_title(source: str, target: str, width: int = 40) -> str:
     shorter = min(len(source), len(target), room // 2)
     rooms = (shorter, room - shorter) if len(source) <= len(target) else (room - shorter,
                                                                           shorter)
-    names = [n if len(n) <= k else n[: (k - 2) // 2] + "..." + n[len(n) - (k - 3) // 2:]
-             for n, k in zip((source, target), rooms)]
-    return f"{names[0]} → {names[1]}"
+    return f"{cut_middle(source, rooms[0])} → {cut_middle(target, rooms[1])}"
 
 
 def _decisive_figures(row: dict[str, Any]) -> str:

@@ -24,8 +24,8 @@ from cagekit.errors import InputError
 from cagekit.io.files import atomic_output
 from cagekit.render import render_meshes
 
-__all__ = ["SHEET_COLUMNS", "STATUS_COLOURS", "TILE_SIZE", "Tile", "draw_contact_sheet",
-           "sheet_size", "status_colour"]
+__all__ = ["SHEET_COLUMNS", "STATUS_COLOURS", "TILE_SIZE", "Tile", "cut_middle",
+           "draw_contact_sheet", "sheet_size", "status_colour"]
 
 #: tiles side by side on a line of the sheet, at most
 SHEET_COLUMNS = 5
@@ -176,10 +176,10 @@ def _draw_tile(fig, tile: Tile, origin, sheet, scratch: str) -> None:
                                  (w - 2 * inset) / sheet[0], (h - 2 * inset) / sheet[1],
                                  transform=fig.transFigure, fill=False, edgecolor=colour,
                                  linewidth=1.5))
-    lines = [(_fit(tile.title, _TITLE_CHARS), 10, "bold", "black"),
-             (_fit(tile.figures, _LINE_CHARS), 9, "normal", "0.25")]
+    lines = [(cut_middle(tile.title, _TITLE_CHARS), 10, "bold", "black"),
+             (cut_middle(tile.figures, _LINE_CHARS), 9, "normal", "0.25")]
     verdict = "ok" if tile.status == "ok" else f"REJECTED: {tile.reason}"
-    lines += [(_fit(text, _BOLD_CHARS), 9, "bold", colour)
+    lines += [(cut_middle(text, _BOLD_CHARS), 9, "bold", colour)
               for text in textwrap.wrap(verdict, _BOLD_CHARS)[:2]]
     top = y0 + text_h - 4
     for text, size, weight, ink in lines:
@@ -204,7 +204,7 @@ def _picture(fig, mesh, corner, side: int, sheet, scratch: str, label: str | Non
 
 
 def _fit_pixels(text: str, size: float, weight: str, pixels: float) -> str:
-    """``text`` cut in the middle (:func:`_fit`) until it is at most ``pixels`` wide, drawn
+    """``text`` cut in the middle (:func:`cut_middle`) until it is at most ``pixels`` wide, drawn
     at ``size`` points and ``weight`` on the sheet: a count of characters does not bound
     a width (``stool → kush_nuba_camp_bench`` ran into the next tile). A pair title
     (``source → target``) keeps its arrow: the longer name is cut first."""
@@ -220,17 +220,21 @@ def _fit_pixels(text: str, size: float, weight: str, pixels: float) -> str:
     names = text.split(" → ")
     if len(names) == 2:
         widths = [len(name) for name in names]
-        while not fits(" → ".join(map(_fit, names, widths))) and max(widths) > 4:
+        while not fits(" → ".join(map(cut_middle, names, widths))) and max(widths) > 4:
             widths[0 if widths[0] >= widths[1] else 1] -= 1
-        text = " → ".join(map(_fit, names, widths))
-    for width in range(len(text), 3, -1):
-        if fits(_fit(text, width)):
-            return _fit(text, width)
-    return _fit(text, 4)
+        text = " → ".join(map(cut_middle, names, widths))
+    cuts = (cut_middle(text, width) for width in range(len(text), 3, -1))
+    return next((cut for cut in cuts if fits(cut)), cut_middle(text, 4))
 
 
-def _fit(text: str, width: int) -> str:
-    """``text`` cut in the middle to ``width`` characters (both ends stay readable)."""
+def cut_middle(text: str, width: int) -> str:
+    """``text`` cut in the middle to ``width`` characters (both ends stay readable).
+
+    Examples
+    --------
+    >>> cut_middle("antiqueChair", 9)
+    'ant...air'
+    """
     if len(text) <= width:
         return text
     keep = width - 3
