@@ -24,6 +24,7 @@ from cagekit.geometry.checks import (
     as_shape,
     as_vertices,
     remove_duplicate_faces,
+    unique_rows,
 )
 from cagekit.geometry.laplacian import (
     cotangent_laplacian,
@@ -44,4 +45,4 @@ from cagekit.geometry.rotations import polar, vertex_rotations
 __all__ = ["Neighborhoods", "as_count", "as_faces", "as_shape", "as_vertices",
            "cotangent_laplacian", "face_areas", "orient_normals", "pca_normals", "pca_planes",
            "point_to_plane", "polar", "remove_duplicate_faces", "surface_laplacian",
-           "uniform_laplacian", "vertex_neighborhoods", "vertex_rotations"]
+           "uniform_laplacian", "unique_rows", "vertex_neighborhoods", "vertex_rotations"]

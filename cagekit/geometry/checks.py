@@ -11,9 +11,10 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from cagekit.errors import InputError
-from cagekit.typed import Faces, Vertices
+from cagekit.typed import Faces, Ints, Vertices
 
-__all__ = ["as_count", "as_faces", "as_shape", "as_vertices", "remove_duplicate_faces"]
+__all__ = ["as_count", "as_faces", "as_shape", "as_vertices", "remove_duplicate_faces",
+           "unique_rows"]
 
 
 def as_vertices(V: ArrayLike, name: str = "V") -> np.ndarray:
@@ -195,7 +196,50 @@ def remove_duplicate_faces(F: ArrayLike) -> np.ndarray:
     F = as_faces(F, np.iinfo(np.int64).max)
     key = np.sort(F, axis=1)
     proper = (key[:, 0] != key[:, 1]) & (key[:, 1] != key[:, 2])
-    _, first = np.unique(key, axis=0, return_index=True)
+    first, _ = unique_rows(key)
     keep = np.zeros(len(F), dtype=bool)
     keep[first] = True
     return F[keep & proper]
+
+
+def unique_rows(rows: ArrayLike) -> tuple[Ints, Ints]:
+    """``np.unique(rows, axis=0, return_index=True, return_inverse=True)[1:]`` of
+    non-negative integer rows, by one integer key a row.
+
+    numpy compares whole rows as records, which is slow (12 ms for the 25,000 edges of a
+    4,000-vertex chair); the rows are numbered here by ``sum_j row_j * base^(c - 1 - j)``
+    (``base`` one more than the largest entry), which orders them as numpy does, so the
+    results are numpy's exactly. Rows whose key would not fit in 62 bits take numpy's way.
+
+    Parameters
+    ----------
+    rows : (m, c) array_like of int
+        Non-negative entries.
+
+    Returns
+    -------
+    first : (u,) int64 ndarray
+        The index of each distinct row's first occurrence, distinct rows in lexicographic
+        order.
+    inverse : (m,) int64 ndarray
+        The distinct row of each row: ``rows[first][inverse]`` is ``rows``.
+
+    Examples
+    --------
+    >>> first, inverse = unique_rows([[1, 2], [0, 5], [1, 2]])
+    >>> first.tolist(), inverse.tolist()
+    ([1, 0], [1, 0, 1])
+    """
+    R = np.asarray(rows)
+    if R.ndim != 2 or (R.size and not np.issubdtype(R.dtype, np.integer)):
+        raise InputError(f"rows must be an (m, c) integer array, got shape {R.shape}")
+    R = R.astype(np.int64, copy=False)
+    base = int(R.max()) + 1 if R.size else 1
+    if R.size and (int(R.min()) < 0 or R.shape[1] * np.log2(base) >= 62):
+        _, first, inverse = np.unique(R, axis=0, return_index=True, return_inverse=True)
+        return first.astype(np.int64), inverse.reshape(-1).astype(np.int64)
+    key = np.zeros(len(R), dtype=np.int64)
+    for column in R.T:
+        key = key * base + column
+    _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
+    return first.astype(np.int64), inverse.astype(np.int64)

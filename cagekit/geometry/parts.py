@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from cagekit.geometry.checks import as_faces, as_vertices
+from cagekit.geometry.checks import as_faces, as_vertices, unique_rows
 from cagekit.typed import Ints
 
 __all__ = ["face_parts", "vertex_parts"]
@@ -106,8 +106,7 @@ def _seam_edges(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     _, position = np.unique(V + 0.0, axis=0, return_inverse=True)  # + 0.0: -0.0 is 0.0
     P = position.reshape(-1)[F]
     ends = np.sort(np.stack([P, np.roll(P, -1, axis=1)], axis=-1).reshape(-1, 2), axis=1)
-    _, side = np.unique(ends, axis=0, return_inverse=True)
-    side = side.reshape(-1).astype(np.int64)
+    side = unique_rows(ends)[1]  # numpy's np.unique(axis=0) numbering, 10x faster
     # a side of no length (a degenerate face's) is no edge: each is its own node, so two
     # pieces touching at one point with such faces there stay apart
     point = ends[:, 0] == ends[:, 1]

@@ -4,6 +4,8 @@ import numpy as np
 import pytest
 import scipy.sparse
 from builders import SQUARE_F, SQUARE_V, grid, icosphere, tilt
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from cagekit import geometry
 from cagekit.errors import InputError
@@ -240,3 +242,25 @@ def test_pca_planes_rejects_bad_neighborhoods():
         pca_planes(SQUARE_V, nb.index)
     with pytest.raises(InputError, match="NaN"):
         pca_normals(np.full((4, 3), np.nan))
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(0, 40), st.integers(1, 4), st.sampled_from([1, 3, 50, 2**20, 2**40]),
+       st.integers(0, 2**32 - 1))
+def test_unique_rows_is_numpys_unique_by_rows(m, c, top, seed):
+    """The same first indices and numbering as np.unique(axis=0), big entries included
+    (which take numpy's own way)."""
+    rows = np.random.default_rng(seed).integers(0, top, size=(m, c))
+    first, inverse = geometry.unique_rows(rows)
+    _, want_first, want_inverse = np.unique(rows, axis=0, return_index=True,
+                                            return_inverse=True)
+    np.testing.assert_array_equal(first, want_first)
+    np.testing.assert_array_equal(inverse, want_inverse.reshape(-1))
+    assert first.dtype == inverse.dtype == np.int64
+
+
+def test_unique_rows_refuses_what_is_not_integer_rows():
+    with pytest.raises(InputError, match="integer"):
+        geometry.unique_rows([[0.5, 1.0]])
+    with pytest.raises(InputError, match="integer"):
+        geometry.unique_rows([1, 2, 3])
