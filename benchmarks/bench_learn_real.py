@@ -13,11 +13,13 @@ seconds a pair:
 - ``scale``: the bounding boxes mapped onto each other;
 - ``cage``: per-pair optimisation with a fitted 200-face cage (``cagekit deform``);
 - ``cage-80``: the same with an 80-face cage (as coarse as the learned one);
-- ``learned``: one forward pass, the full mesh bound to the predicted cage (``--model``),
-  which is checked first (:mod:`cagekit_learn.cage_repair`): grown when it leaves part of
-  the source out, replaced by per-pair optimisation (the ``cage`` result, one warning)
-  when it cannot be used; a result further from the target than box scaling (Chamfer of
-  2,048 samples) is replaced by the scaling (one warning);
+- ``learned``: ``--model`` as a user gets it: one forward pass, the full mesh bound to
+  the predicted cage, which is checked first (:mod:`cagekit_learn.cage_repair`): grown
+  when it leaves part of the source out, replaced by per-pair optimisation (the ``cage``
+  result, one warning) when it cannot be used; the result polished by 20 evaluations of
+  the per-pair energy (``--polish``); a result further from the target than box scaling
+  (Chamfer of 2,048 samples) is replaced by the scaling (one warning);
+- ``learned-net``: the same with ``--polish 0``: the network's result (checked);
 - ``learned-raw``: the prediction used as it is, unchecked (what ``--model`` did before
   issue 32: points outside the cage extrapolated): the network's own figures;
 - ``learned+refine``: the per-pair optimisation started from the prediction.
@@ -72,7 +74,7 @@ from cagekit_learn.make_shipped import (  # noqa: E402
 )
 from cagekit_learn.train import load_model, train  # noqa: E402
 
-METHODS = ("scale", "cage", "cage-80", "learned", "learned-raw", "learned+refine")
+METHODS = ("scale", "cage", "cage-80", "learned", "learned-net", "learned-raw", "learned+refine")
 FIGURES = ("cd", "dcotlap", "part_median", "part_worst", "planar_p95", "seconds")
 
 
@@ -102,6 +104,8 @@ def run_method(method, model, points, source, target):
         t0 = time.perf_counter()
         if method == "learned-raw":
             result = raw_prediction(model, points, source, target)
+        elif method == "learned-net":
+            result = deform_with_model(model, *source, *target, points=points, polish=0)
         elif method.startswith("learned"):
             result = deform_with_model(model, *source, *target, points=points,
                                        refine=method == "learned+refine")

@@ -7,7 +7,10 @@ be grown to enclose it, and then the pair is deformed by :func:`cagekit.deform` 
 fitted cage, with one warning); the full-resolution source is then bound to the cage with
 the core's exact MVC (:func:`cagekit.bind`, float64) and moved with the deformed cage.
 ``refine=True`` then runs the per-pair optimisation of :func:`cagekit.deform` on the
-predicted cage, starting from its predicted deformation. Without it, a result further from
+predicted cage, starting from its predicted deformation. Without it, the result is polished
+by :data:`POLISH_EVALUATIONS` evaluations of the same energy on :data:`POLISH_SAMPLES`
+samples (``polish``; 0 hands on the network's result as it is, the default for a model
+trained with a fixed source); then a result further from
 the target than the predicted cage scaled as the source's box scales onto the target's is
 replaced by that scaling, with one warning (:func:`warn_if_worse_than_scaling`;
 ``scaling_fallback=False``, ``cagekit deform --keep-prediction``, keeps the network's
@@ -59,6 +62,15 @@ __all__ = ["ModelDeformer", "predict", "predict_fixed_source", "predict_cages",
 #: largest whose median CD is no worse than ``cage``'s there); docs/benchmarks.md, "The
 #: refinement's cage weight".
 REFINE_CAGE_WEIGHT = 0.01
+#: samples of each shape in the polish's Chamfer term (``polish`` of
+#: :func:`deform_with_model`; the refinement takes ``options.samples``, 2,000 by default)
+POLISH_SAMPLES = 1000
+#: evaluations of the refinement's energy that polish the network's result by default
+#: (``polish`` of :func:`deform_with_model`, ``cagekit deform --polish``): chosen on 24
+#: pairs of the ``chairs`` model's *training* seats (0, 10, 20, 30: per-pair Chamfer
+#: distance 1, 0.90, 0.87, 0.85 of the network's alone; 0.04, 0.09, 0.12, 0.14 s a pair
+#: on a 2-core AMD EPYC); docs/benchmarks.md, "The network's result polished"
+POLISH_EVALUATIONS = 20
 
 
 def predict(model: NeuralCages, source_points: ArrayLike,
@@ -185,7 +197,8 @@ def deform_with_model(model: NeuralCages, V_src: ArrayLike, F_src: ArrayLike | N
                       points: int | None = None, seed: int = 0, refine: bool = False,
                       options: DeformOptions | None = None,
                       progress: Callable[[int, int], object] | None = None,
-                      fallback: bool = True, scaling_fallback: bool = True) -> DeformResult:
+                      fallback: bool = True, scaling_fallback: bool = True,
+                      polish: int | None = None) -> DeformResult:
     """Deform a source to take a target's shape with a trained model.
 
     Parameters
@@ -226,15 +239,23 @@ def deform_with_model(model: NeuralCages, V_src: ArrayLike, F_src: ArrayLike | N
         box maps onto the target's, the source moved by it: with MVC exactly the source
         scaled (``cagekit deform --method scale``), with Green coordinates, which keep
         angles, near it. True hands that on instead (method ``"scale"``, the scaled
-        cage as the deformed cage); False keeps the network's result.
+        cage as the deformed cage); False keeps the network's result. With ``polish``
+        the polished result is compared (on fresh samples, as always).
+    polish : int, optional
+        Without ``refine``: evaluations of the refinement's energy (``options``' terms,
+        :data:`POLISH_SAMPLES` samples) that polish the network's result, started from its
+        predicted deformation; 0 hands on the network's result as it is. Default
+        :data:`POLISH_EVALUATIONS` (0.05-0.06 s on a 6,000-vertex chair), or 0 for a
+        model trained with a fixed source, whose targets correspond vertex for vertex
+        (the energy's Chamfer term would not keep that).
 
     Returns
     -------
     DeformResult
-        ``method`` is ``"learned"`` or ``"learned+refine"`` (``"cage"`` or ``"scale"``
-        after a fall back); vertices in the target's frame and units; the cages in the
-        source's and target's frames: the cage used, which is the predicted one grown
-        about the source's centre when it left points outside.
+        ``method`` is ``"learned"`` (polished or not) or ``"learned+refine"``
+        (``"cage"`` or ``"scale"`` after a fall back); vertices in the target's frame and
+        units; the cages in the source's and target's frames: the cage used, which is the
+        predicted one grown about the source's centre when it left points outside.
 
     Raises
     ------
@@ -253,6 +274,10 @@ def deform_with_model(model: NeuralCages, V_src: ArrayLike, F_src: ArrayLike | N
     """
     start = time.perf_counter()
     options = DeformOptions() if options is None else options
+    if polish is None:
+        polish = 0 if getattr(model, "fixed_source", None) is not None else POLISH_EVALUATIONS
+    if isinstance(polish, bool) or not isinstance(polish, (int, np.integer)) or polish < 0:
+        raise InputError(f"polish must be an integer >= 0, got {polish!r}")
     if not isinstance(options, DeformOptions):
         raise InputError(f"options must be DeformOptions, got {type(options).__name__}")
     Vs, Fs, Vt, Ft = _shapes(V_src, F_src, V_tgt, F_tgt)
@@ -280,17 +305,31 @@ def deform_with_model(model: NeuralCages, V_src: ArrayLike, F_src: ArrayLike | N
             tolerance=options.tolerance, progress=progress))
         result.method = "learned+refine"
     else:
-        binding = bind(Vs_n, cage_n, cage_f, method=_coords_of(model), check=False)
-        moved_n = binding.deform(deformed_n)
+        move: Callable[[Vertices], Vertices]
+        if polish:  # a few steps of the refinement's energy from the prediction
+            problem = CageProblem.create(
+                Vs_n, Fs, Vt_n, Ft, cage_n, cage_f,
+                dataclasses.replace(options, coords=_coords_of(model), seed=seed,
+                                    samples=POLISH_SAMPLES,
+                                    weights=_refine_weights(options)))
+            polished = solve(problem, deformed_n, max_evaluations=polish,
+                             tolerance=options.tolerance)
+            move, used_f = problem.vertices_of, problem.cage_f
+            moved_n, deformed_n = polished.vertices, polished.deformed_cage
+        else:
+            binding = bind(Vs_n, cage_n, cage_f, method=_coords_of(model), check=False)
+            move, used_f = binding.deform, binding.cage_f
+            moved_n = move(deformed_n)
         scaled_cage = cage_n * box_scale(Vs_n, Vt_n)
-        scaled_n = binding.deform(scaled_cage)
+        scaled_n = move(scaled_cage)
+        # fresh samples: the polish's own would favour the result it was fitted to
         if warn_if_worse_than_scaling(Vs_n, Fs, Vt_n, Ft, moved_n, seed=seed,
                                       instead=scaling_fallback,
                                       scaled_n=scaled_n) and scaling_fallback:
             moved_n, deformed_n = scaled_n, scaled_cage
             result.method = "scale"
         result.vertices = ft.to_world(moved_n)
-        result.cage_v, result.cage_f = fs.to_world(cage_n), binding.cage_f
+        result.cage_v, result.cage_f = fs.to_world(cage_n), used_f
         result.deformed_cage_v = ft.to_world(deformed_n)
     if not np.isfinite(result.vertices).all():
         raise FloatingPointError("the model produced NaN or inf positions")
@@ -386,6 +425,8 @@ class ModelDeformer:
         As :func:`deform_with_model`.
     scaling_fallback : bool, default True
         As :func:`deform_with_model`.
+    polish : int, optional
+        As :func:`deform_with_model`.
 
     Examples
     --------
@@ -393,9 +434,10 @@ class ModelDeformer:
     >>> result = deformer(V_src, F_src, V_tgt, F_tgt, seed=0)  # doctest: +SKIP
     """
 
-    def __init__(self, path: str, refine: bool = False, scaling_fallback: bool = True):
+    def __init__(self, path: str, refine: bool = False, scaling_fallback: bool = True,
+                 polish: int | None = None):
         self.path, self.refine = path, bool(refine)
-        self.scaling_fallback = bool(scaling_fallback)
+        self.scaling_fallback, self.polish = bool(scaling_fallback), polish
         self._model: tuple[NeuralCages, int] | None = None
 
     def __getstate__(self):
@@ -409,4 +451,5 @@ class ModelDeformer:
             self._model = (model, int(payload.get("config", {}).get("points", 1024)))
         model, points = self._model
         return deform_with_model(model, V_src, F_src, V_tgt, F_tgt, points=points, seed=seed,
-                                 refine=self.refine, scaling_fallback=self.scaling_fallback)
+                                 refine=self.refine, scaling_fallback=self.scaling_fallback,
+                                 polish=self.polish)

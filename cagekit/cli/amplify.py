@@ -46,6 +46,9 @@ def _pairs_option(ctx, param, value):
               help="Run folder or checkpoint of cagekit train, or a shipped model's name "
                    "(chairs, tables), with --method model.")
 @click.option("--refine", is_flag=True, help="With --model: optimise each predicted cage.")
+@click.option("--polish", type=click.IntRange(min=0), default=None,
+              help="With --model: evaluations of the per-pair energy that polish each "
+                   "network result (default 20, or 0 for a --fixed-source model; 0: none).")
 @click.option("--coords", type=click.Choice(list(DEFORM_COORDINATE_METHODS)), default="mvc",
               show_default=True,
               help="Cage coordinates of --method cage (green: organic shapes; see "
@@ -77,7 +80,8 @@ def _pairs_option(ctx, param, value):
 @debug_option
 @click.pass_context
 def amplify(ctx: click.Context, collection: str, out: str, variations: int | None,
-            pairs: str | None, method: str, model_path: str | None, refine: bool, coords: str,
+            pairs: str | None, method: str, model_path: str | None, refine: bool,
+            polish: int | None, coords: str,
             category_by: str | None, seed: int, workers: int | None, cluster: str | None,
             max_nonaffinity: float | None, max_cd: float | None,
             max_crossings: int | None, drop_rejected: bool,
@@ -115,11 +119,13 @@ def amplify(ctx: click.Context, collection: str, out: str, variations: int | Non
         raise click.UsageError("--method model and --model RUN_DIR go together")
     if refine and method != "model":
         raise click.UsageError("--refine applies to --method model")
+    if polish is not None and (method != "model" or refine):
+        raise click.UsageError("--polish applies to --method model without --refine")
     if coords != "mvc" and method != "cage":
         raise click.UsageError("--coords green applies to --method cage")
     if os.path.exists(out) and not os.path.isdir(out):
         raise InputError("exists and is not a folder", out)
-    deformer = _deformer(model_path, refine) if method == "model" else None
+    deformer = _deformer(model_path, refine, polish) if method == "model" else None
     with _executor(cluster, workers) as executor, \
             progress_bar("amplify", "item") as bar:
         rows = run_batch(collection, out, variations=variations, pairs=pairs, method=method,
@@ -145,7 +151,7 @@ def amplify(ctx: click.Context, collection: str, out: str, variations: int | Non
         ctx.exit(SOME_FAILED)
 
 
-def _deformer(model_path, refine):
+def _deformer(model_path, refine, polish=None):
     """The model's deformer; the checkpoint is read here once, so a bad one exits 2."""
     try:
         from cagekit_learn.inference import ModelDeformer
@@ -154,7 +160,7 @@ def _deformer(model_path, refine):
         raise InputError(f"--model needs the learned mode: pip install -e '.[learn]' ({exc})",
                          model_path) from None
     load_model(model_path)
-    return ModelDeformer(model_path, refine)
+    return ModelDeformer(model_path, refine, polish=polish)
 
 
 class _executor:

@@ -154,6 +154,10 @@ def _load_landmark_pair(src_path, tgt_path):
 @click.option("--refine", is_flag=True,
               help="With --model: then optimise the predicted cage per pair (as --method "
                    "cage, started from the prediction).")
+@click.option("--polish", type=click.IntRange(min=0), default=None,
+              help="With --model: evaluations of the per-pair energy that polish the "
+                   "network's result (default 20 for a model of shapes, 0 for one "
+                   "trained with --fixed-source; 0: the network's result as it is).")
 @click.option("--keep-prediction", is_flag=True,
               help="With --model: write the network's result even where the predicted "
                    "cage scaled onto TARGET's box comes nearer TARGET (by default that "
@@ -169,7 +173,7 @@ def deform(ctx: click.Context, source: str, target: str, out: str, method: str,
            symmetry: str,
            landmarks: tuple[str, str] | None, weights: dict[str, float], reference: str,
            target_kind: str, coords: str, model_path: str | None, refine: bool,
-           keep_prediction: bool, preview: str | None, up: str, seed: int,
+           polish: int | None, keep_prediction: bool, preview: str | None, up: str, seed: int,
            as_json: bool) -> None:
     """Deform SOURCE so that it takes TARGET's shape, keeping SOURCE's detail.
 
@@ -199,6 +203,8 @@ def deform(ctx: click.Context, source: str, target: str, out: str, method: str,
                                "only, not to --model")
     if keep_prediction and (not model_path or refine):
         raise click.UsageError("--keep-prediction applies to --model without --refine")
+    if polish is not None and (not model_path or refine):
+        raise click.UsageError("--polish applies to --model without --refine")
     from cagekit.deformation import DeformOptions
 
     model = _load_model(model_path) if model_path else None
@@ -212,7 +218,7 @@ def deform(ctx: click.Context, source: str, target: str, out: str, method: str,
                       and (model is None or refine)) as bar:
         try:
             result = _run(src, tgt, cage, pairs, model, refine, options, bar_callback(bar),
-                          keep_prediction)
+                          keep_prediction, polish)
         except InputError as exc:
             raise _blamed(exc, source, target, cage_path, landmarks) from None
     figures = _checked_figures(src, tgt, result, source, out)
@@ -274,7 +280,8 @@ def _load_inputs(source, target, out, cage_path, landmarks, allow_outside=False)
     return src, tgt, cage, pairs, write
 
 
-def _run(src, tgt, cage, pairs, model, refine, options, progress, keep_prediction=False):
+def _run(src, tgt, cage, pairs, model, refine, options, progress, keep_prediction=False,
+         polish=None):
     """The deformation: per-pair (``cagekit.deform``) or by the model."""
     import warnings
 
@@ -287,7 +294,7 @@ def _run(src, tgt, cage, pairs, model, refine, options, progress, keep_predictio
         net, points = model
         return deform_with_model(net, *src, *tgt, points=points, seed=options.seed,
                                  refine=refine, options=options, progress=progress,
-                                 scaling_fallback=not keep_prediction)
+                                 scaling_fallback=not keep_prediction, polish=polish)
     # a given cage was checked by _load_inputs, with its file name in the messages
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", OutsideCageWarning)

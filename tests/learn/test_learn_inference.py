@@ -15,12 +15,19 @@ from builders import REPOSITORY as ROOT  # noqa: E402
 from cagekit import bind, io  # noqa: E402
 from cagekit.cli import main  # noqa: E402
 from cagekit.datasets import synthetic  # noqa: E402
-from cagekit.deformation import DeformOptions  # noqa: E402
+from cagekit.deformation import CageProblem, DeformOptions, solve  # noqa: E402
+from cagekit.errors import InputError  # noqa: E402
 from cagekit.geometry.frame import Frame  # noqa: E402
 from cagekit.geometry.sampling import sample_surface  # noqa: E402
 from cagekit.metrics import evaluate  # noqa: E402
 from cagekit_learn.cage_repair import check_predicted_cage  # noqa: E402
-from cagekit_learn.inference import deform_with_model, predict  # noqa: E402
+from cagekit_learn.inference import (  # noqa: E402
+    POLISH_EVALUATIONS,
+    POLISH_SAMPLES,
+    REFINE_CAGE_WEIGHT,
+    deform_with_model,
+    predict,
+)
 from cagekit_learn.train import load_model  # noqa: E402
 
 
@@ -66,7 +73,7 @@ def test_prediction_deforms_the_full_mesh_with_the_core_binding(run_dir, pair):
     model, payload = load_model(run_dir)
     src, tgt = io.load_shape(pair[0]), io.load_shape(pair[1])
     result = deform_with_model(model, *src, *tgt, points=256, seed=5,
-                               scaling_fallback=False)
+                               scaling_fallback=False, polish=0)
     assert result.method == "learned"
     assert result.vertices.shape == src[0].shape and np.isfinite(result.vertices).all()
     # the same thing by hand: samples, one forward pass, the core's float64 MVC
@@ -86,12 +93,43 @@ def test_prediction_deforms_the_full_mesh_with_the_core_binding(run_dir, pair):
     assert np.allclose(result.deformed_cage_v, deformed * st + ct)
 
 
+@pytest.mark.filterwarnings("ignore:the model's result is further:UserWarning")
+def test_polish_is_the_refinement_energy_a_few_steps_from_the_prediction(run_dir, pair):
+    model, _ = load_model(run_dir)
+    src, tgt = io.load_shape(pair[0]), io.load_shape(pair[1])
+    raw = deform_with_model(model, *src, *tgt, points=256, seed=5, scaling_fallback=False,
+                            polish=0)
+    polished = deform_with_model(model, *src, *tgt, points=256, seed=5,
+                                 scaling_fallback=False)  # POLISH_EVALUATIONS by default
+    assert polished.method == "learned"
+    np.testing.assert_allclose(polished.cage_v, raw.cage_v)
+    # by hand: the refinement's problem on POLISH_SAMPLES samples, solved from the prediction
+    frame_s, frame_t = Frame.of(src[0]), Frame.of(tgt[0])
+    Vs_n, Vt_n = frame_s.to_unit(src[0]), frame_t.to_unit(tgt[0])
+    options = DeformOptions(samples=POLISH_SAMPLES, seed=5,
+                            weights={"cage": REFINE_CAGE_WEIGHT})
+    problem = CageProblem.create(Vs_n, src[1], Vt_n, tgt[1], frame_s.to_unit(raw.cage_v),
+                                 raw.cage_f, options)
+    start = frame_t.to_unit(raw.deformed_cage_v)
+    solution = solve(problem, start, max_evaluations=POLISH_EVALUATIONS)
+    # (the cage's trip through the world frame moves its last bits: not bit for bit)
+    np.testing.assert_allclose(frame_t.to_unit(polished.deformed_cage_v),
+                               solution.deformed_cage, atol=1e-6)
+    np.testing.assert_allclose(frame_t.to_unit(polished.vertices), solution.vertices,
+                               atol=1e-6)
+    assert solution.energy < problem.energy(start)[0]  # it moved, downhill
+    for bad in (-1, 2.5, True):
+        with pytest.raises(InputError, match="polish"):
+            deform_with_model(model, *src, *tgt, points=256, polish=bad)
+
+
 # a few steps of training: its result is worse than box scaling (warned)
 @pytest.mark.filterwarnings("ignore:the model's result is further:UserWarning")
 def test_refine_starts_from_the_prediction_and_improves_it(run_dir, pair):
     model, _ = load_model(run_dir)
     src, tgt = io.load_shape(pair[0]), io.load_shape(pair[1])
-    learned = deform_with_model(model, *src, *tgt, points=256, scaling_fallback=False)
+    learned = deform_with_model(model, *src, *tgt, points=256, scaling_fallback=False,
+                                polish=0)
     assert learned.method == "learned"
     refined = deform_with_model(model, *src, *tgt, points=256, refine=True,
                                 options=DeformOptions(max_evaluations=30))
@@ -107,7 +145,8 @@ def test_deform_model_command(run_dir, pair, tmp_path, capsys):
     out = tmp_path / "out.obj"
     code, stdout, stderr = _cli(["deform", str(pair[0]), str(pair[1]), "--model",
                                  str(run_dir / "checkpoint.pt"), "-o", str(out), "--save-cage",
-                                 str(tmp_path / "cage.obj"), "--json"], capsys)
+                                 str(tmp_path / "cage.obj"), "--json", "--polish", "0"],
+                                capsys)
     assert code == 0
     figures = json.loads(stdout)
     # a few steps of training do worse than box scaling: the command hands that on, saying so
@@ -127,10 +166,17 @@ def test_deform_model_command(run_dir, pair, tmp_path, capsys):
     # --keep-prediction writes the network's own result (and still warns)
     code, stdout, stderr = _cli(["deform", str(pair[0]), str(pair[1]), "--model", str(run_dir),
                                  "--keep-prediction", "-o", str(tmp_path / "kept.obj"),
-                                 "--json"], capsys)
+                                 "--json", "--polish", "0"], capsys)
     assert code == 0 and json.loads(stdout)["method"] == "learned"
     assert "the result is kept" in stderr
-    assert json.loads(stdout)["cd"] > figures["cd"]
+    network = json.loads(stdout)["cd"]
+    assert network > figures["cd"]
+    # polished by default: nearer the target than the network's own result
+    code, stdout, _ = _cli(["deform", str(pair[0]), str(pair[1]), "--model", str(run_dir),
+                            "--keep-prediction", "-o", str(tmp_path / "polished.obj"),
+                            "--json"], capsys)
+    assert code == 0 and json.loads(stdout)["method"] == "learned"
+    assert json.loads(stdout)["cd"] < network
     code, stdout, _ = _cli(["deform", str(pair[0]), str(pair[1]), "--model", str(run_dir),
                             "--refine", "-o", str(tmp_path / "refined.obj"), "--json"],
                            capsys)
@@ -148,6 +194,8 @@ def test_deform_model_command(run_dir, pair, tmp_path, capsys):
     (["--model", "{run}", "--coords", "green"], "--coords green applies"),
     (["--keep-prediction"], "--keep-prediction applies to --model without --refine"),
     (["--model", "{run}", "--refine", "--keep-prediction"], "--keep-prediction applies"),
+    (["--polish", "5"], "--polish applies to --model without --refine"),
+    (["--model", "{run}", "--refine", "--polish", "5"], "--polish applies"),
     (["--model", "{hollow}"], "not a usable cagekit checkpoint"),
 ])
 def test_deform_model_bad_input_exits_2_with_one_line(run_dir, pair, tmp_path, capsys,
@@ -226,6 +274,16 @@ def test_amplify_with_a_model_on_two_workers_matches_one_worker(run_dir, tmp_pat
     code, _, err = _cli(["amplify", "synthetic:vases:3", "-o", str(tmp_path / "x"),
                          "--variations", "1", "--method", "model"], capsys)
     assert code == 2 and "--model" in err
+    # --polish 0: the network's own results, which the default polish moved
+    code, _, _ = _cli(["amplify", "synthetic:vases:3", "-o", str(tmp_path / "raw"),
+                       "--variations", "3", "--method", "model", "--model", str(run_dir),
+                       "--workers", "1", "--polish", "0"], capsys)
+    assert code == 0
+    raw = json.loads((tmp_path / "raw" / "manifest.json").read_text())["items"]
+    assert [r["cd"] for r in raw] != pytest.approx([r["cd"] for r in runs["1"]], rel=1e-6)
+    code, _, err = _cli(["amplify", "synthetic:vases:3", "-o", str(tmp_path / "y"),
+                         "--variations", "1", "--polish", "3"], capsys)
+    assert code == 2 and "--polish applies to --method model" in err
 
 
 def test_a_model_trained_with_green_coordinates_deforms_with_them(tmp_path, pair, capsys):
@@ -258,7 +316,8 @@ def test_a_model_trained_with_green_coordinates_deforms_with_them(tmp_path, pair
     from cagekit.errors import CagekitWarning
 
     with pytest.warns(CagekitWarning, match="the scaling is returned instead"):
-        scaled = deform_with_model(model, Vs, Fs, *io.load_shape(pair[1]), points=256)
+        scaled = deform_with_model(model, Vs, Fs, *io.load_shape(pair[1]), points=256,
+                                   polish=0)
     assert scaled.method == "scale"
     same = bind(Vs, scaled.cage_v, scaled.cage_f, method="green").deform(scaled.deformed_cage_v)
     np.testing.assert_allclose(scaled.vertices, same, atol=1e-6)  # target 40x larger
@@ -369,12 +428,13 @@ def test_the_model_warns_on_a_pair_that_scaling_serves_better(run_dir):
     model, _ = load_model(run_dir)
     with pytest.warns(CagekitWarning, match="unlike the shapes .* the result is kept"):
         kept = deform_with_model(model, V, F, V * [1.0, 2.0, 1.0], F, points=256,
-                                 scaling_fallback=False)
+                                 scaling_fallback=False, polish=0)
     assert kept.method == "learned"
     assert not np.allclose(kept.vertices, V * [1.0, 2.0, 1.0], atol=1e-3)
     # by default the scaling is handed on instead, and its cage moves the source there
     with pytest.warns(CagekitWarning, match="the scaling is returned instead"):
-        result = deform_with_model(model, V, F, V * [1.0, 2.0, 1.0], F, points=256)
+        result = deform_with_model(model, V, F, V * [1.0, 2.0, 1.0], F, points=256,
+                                   polish=0)
     assert result.method == "scale"
     assert np.allclose(result.vertices, V * [1.0, 2.0, 1.0], atol=1e-12)
     assert np.allclose(result.cage_v, kept.cage_v)
