@@ -45,8 +45,8 @@ from cagekit.geometry.frame import Frame
 from cagekit.geometry.parts import vertex_parts
 from cagekit.geometry.sampling import sample_surface
 
-__all__ = ["Evaluation", "chamfer", "point_chamfer", "conformal_distortion", "dcotlap",
-           "evaluate", "nearest_residuals", "part_nonaffinity", "planarity", "symmetry_error",
+__all__ = ["Evaluation", "chamfer", "chamfers_to", "point_chamfer", "conformal_distortion",
+           "dcotlap", "evaluate", "nearest_residuals", "part_nonaffinity", "planarity", "symmetry_error",
            "MIN_PART_VERTICES", "PLANAR_DEGREES", "SYMMETRY_TOLERANCE"]
 
 #: a source component with fewer vertices is too small to be a part (a screw, a label)
@@ -164,14 +164,56 @@ def chamfer(
     >>> 0.0 < cd < 1e-3, cd == chamfer(V, F, V, F, n_samples=1000)
     (True, True)
     """
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise InputError(f"seed must be an integer >= 0, got {seed!r}")
-    seed_a, seed_b = (
-        int(s.generate_state(1)[0]) for s in np.random.SeedSequence(int(seed)).spawn(2)
-    )
+    seed_a, seed_b = _chamfer_seeds(seed)
     A = sample_surface(Va, Fa, n_samples, seed_a)
     B = sample_surface(Vb, Fb, n_samples, seed_b)
     return point_chamfer(A, B)
+
+
+def _chamfer_seeds(seed):
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise InputError(f"seed must be an integer >= 0, got {seed!r}")
+    return tuple(int(s.generate_state(1)[0])
+                 for s in np.random.SeedSequence(int(seed)).spawn(2))
+
+
+def chamfers_to(versions: list[ArrayLike], Fa: ArrayLike | None, Vb: ArrayLike,
+                Fb: ArrayLike | None, n_samples: int = 5000, seed: int = 0) -> list[float]:
+    """:func:`chamfer` of each of several positions of one mesh to one target, the target
+    sampled (and its tree built) once.
+
+    Parameters
+    ----------
+    versions : list of (n, 3) array_like of float
+        Vertex positions of the mesh, each with faces ``Fa``.
+    Fa, Vb, Fb, n_samples, seed
+        As :func:`chamfer`.
+
+    Returns
+    -------
+    list of float
+        ``chamfer(V, Fa, Vb, Fb, n_samples, seed)`` for each ``V`` of ``versions``, equal
+        to it bit for bit.
+
+    Examples
+    --------
+    >>> V, F = [[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]]
+    >>> moved = [[0, 0, 1], [1, 0, 1], [0, 1, 1]]
+    >>> cds = chamfers_to([V, moved], F, V, F, n_samples=100)
+    >>> cds == [chamfer(V, F, V, F, 100), chamfer(moved, F, V, F, 100)]
+    True
+    """
+    seed_a, seed_b = _chamfer_seeds(seed)
+    B = as_vertices(sample_surface(Vb, Fb, n_samples, seed_b), "Q")
+    tree_B = cKDTree(B)
+    out = []
+    for V in versions:
+        A = as_vertices(sample_surface(V, Fa, n_samples, seed_a), "P")
+        to_b, _ = nearest_residuals(A, B, tree_B)
+        to_a, _ = nearest_residuals(B, A)
+        out.append(float(np.einsum("ij,ij->i", to_b, to_b).mean()
+                         + np.einsum("ij,ij->i", to_a, to_a).mean()))
+    return out
 
 
 def dcotlap(V_src: ArrayLike, F_src: ArrayLike, V_out: ArrayLike) -> float:

@@ -44,7 +44,7 @@ from cagekit.geometry import as_shape
 from cagekit.geometry.alignment import box_scale
 from cagekit.geometry.frame import pair_frames
 from cagekit.geometry.sampling import sample_surface
-from cagekit.metrics import chamfer
+from cagekit.metrics import chamfers_to
 from cagekit.typed import Vertices
 from cagekit_learn.cage_repair import check_predicted_cage
 from cagekit_learn.networks import NeuralCages
@@ -385,8 +385,8 @@ def warn_if_worse_than_scaling(Vs_n: ArrayLike, Fs: ArrayLike | None, Vt_n: Arra
     """
     Vs_n, Vt_n = np.asarray(Vs_n, dtype=np.float64), np.asarray(Vt_n, dtype=np.float64)
     scaled = Vs_n * box_scale(Vs_n, Vt_n) if scaled_n is None else scaled_n
-    learned = chamfer(moved_n, Fs, Vt_n, Ft, n_samples=2048, seed=seed)
-    scaling = chamfer(scaled, Fs, Vt_n, Ft, n_samples=2048, seed=seed)
+    learned, scaling = chamfers_to([moved_n, scaled], Fs, Vt_n, Ft, n_samples=2048,
+                                   seed=seed)
     if not learned > scaling:
         return False
     warnings.warn(CagekitWarning(

@@ -13,6 +13,7 @@ from cagekit.geometry.frame import Frame
 from cagekit.geometry.sampling import sample_surface
 from cagekit.metrics import (
     chamfer,
+    chamfers_to,
     dcotlap,
     evaluate,
     part_nonaffinity,
@@ -123,6 +124,22 @@ def test_chamfer_is_deterministic_per_seed():
     for seed in (-1, 1.5, True, None):
         with pytest.raises(InputError, match="seed"):
             chamfer(Va, Fa, Vb, Fb, n_samples=10, seed=seed)
+
+
+@settings(max_examples=25, deadline=None)
+@given(SEEDS, SEEDS)
+def test_chamfers_to_is_chamfer_of_each_version(seed, shape_seed):
+    """One target sampled once gives each version's chamfer bit for bit (a cloud too)."""
+    rng = np.random.default_rng(shape_seed)
+    Va, Fa = ellipsoid()
+    Vb, Fb = ellipsoid(axes=(1.1, 1.9, 0.6), offset=(0.05, 0, 0))
+    versions = [Va, Va * rng.uniform(0.5, 2.0, 3), Va + rng.normal(0, 0.1, Va.shape)]
+    for target_faces in (Fb, None):
+        got = chamfers_to(versions, Fa, Vb, target_faces, n_samples=300, seed=seed % 1000)
+        assert got == [chamfer(V, Fa, Vb, target_faces, n_samples=300, seed=seed % 1000)
+                       for V in versions]
+    with pytest.raises(InputError, match="seed"):
+        chamfers_to(versions, Fa, Vb, Fb, seed=-1)
 
 
 def test_chamfer_of_translated_plane_adds_twice_squared_shift():
