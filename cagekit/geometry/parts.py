@@ -103,8 +103,7 @@ def _face_parts(V: np.ndarray, F: np.ndarray) -> np.ndarray:
 def _seam_edges(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """(m, 3) int64: an index per face side, shared by the sides whose two ends are at the
     same two positions (the sides of one edge, across a seam or not)."""
-    _, position = np.unique(V + 0.0, axis=0, return_inverse=True)  # + 0.0: -0.0 is 0.0
-    P = position.reshape(-1)[F]
+    P = _positions(V)[F]
     ends = np.sort(np.stack([P, np.roll(P, -1, axis=1)], axis=-1).reshape(-1, 2), axis=1)
     side = unique_rows(ends)[1]  # numpy's np.unique(axis=0) numbering, 10x faster
     # a side of no length (a degenerate face's) is no edge: each is its own node, so two
@@ -112,6 +111,20 @@ def _seam_edges(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     point = ends[:, 0] == ends[:, 1]
     side[point] = side.max() + 1 + np.arange(int(point.sum()))
     return side.reshape(-1, 3)
+
+
+def _positions(V: np.ndarray) -> np.ndarray:
+    """(n,) int64: the number of each vertex's position among the distinct positions in
+    lexicographic order (``np.unique(V, axis=0, return_inverse=True)[1]``, 3x faster;
+    ``-0.0`` read as ``0.0``)."""
+    W = V + 0.0  # -0.0 becomes 0.0
+    order = np.lexsort(W.T[::-1])  # the first coordinate first
+    ranked = W[order]
+    new = np.ones(len(W), dtype=bool)
+    new[1:] = (ranked[1:] != ranked[:-1]).any(axis=1)
+    position = np.empty(len(W), dtype=np.int64)
+    position[order] = np.cumsum(new) - 1
+    return position
 
 
 def _components(n: int, F: np.ndarray, sides: np.ndarray) -> np.ndarray:

@@ -102,3 +102,16 @@ def test_splitting_and_renumbering_never_change_the_parts(seed, pieces):
     used = np.zeros(len(Vp), dtype=bool)
     used[Fp.ravel()] = True
     assert (labels[used] >= 0).all() and len(np.unique(labels[used])) == pieces
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.integers(1, 60), st.integers(0, 2**32 - 1))
+def test_positions_number_as_numpys_unique_rows(n, seed):
+    """Repeated rows, signed zeros and ties in the first coordinates: numpy's numbering."""
+    from cagekit.geometry.parts import _positions
+
+    rng = np.random.default_rng(seed)
+    pool = rng.choice([-1.0, -0.0, 0.0, 0.5, 1.0, 1e-300], size=(max(1, n // 3), 3))
+    V = pool[rng.integers(0, len(pool), n)]
+    want = np.unique(V + 0.0, axis=0, return_inverse=True)[1].reshape(-1)
+    np.testing.assert_array_equal(_positions(V), want)
