@@ -46,8 +46,8 @@ from cagekit.geometry.parts import vertex_parts
 from cagekit.geometry.sampling import sample_surface
 
 __all__ = ["Evaluation", "chamfer", "chamfers_to", "point_chamfer", "conformal_distortion",
-           "dcotlap", "evaluate", "nearest_residuals", "part_nonaffinity", "planarity", "symmetry_error",
-           "MIN_PART_VERTICES", "PLANAR_DEGREES", "SYMMETRY_TOLERANCE"]
+           "dcotlap", "evaluate", "nearest_residuals", "part_nonaffinity", "planarity",
+           "symmetry_error", "MIN_PART_VERTICES", "PLANAR_DEGREES", "SYMMETRY_TOLERANCE"]
 
 #: a source component with fewer vertices is too small to be a part (a screw, a label)
 MIN_PART_VERTICES = 30
