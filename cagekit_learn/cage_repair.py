@@ -7,8 +7,9 @@ tip, a sofa's arm) or fold through itself. Neither may reach the user silently, 
 - **valid**: no face crosses another (the exact test of
   :func:`cagekit.cage.self_intersecting_faces`) and every source point lies inside or on
   it (generalised winding number at least 0.5; the compiled
-  :func:`cagekit.coords.winding.batched_winding_numbers`, libigl's numbers to 1e-12 and
-  20x faster on a 6,000-vertex chair and the 80-face template);
+  :func:`cagekit.coords.winding.batched_winding_numbers`, libigl's numbers to 1e-12 away
+  from the cage's surface, where both are ill-defined, and 10x faster on a 6,000-vertex
+  chair and the 80-face template);
 - **repaired**: a cage that crosses nothing but leaves points outside is grown about the
   points' bounding-box centre by the least factor, up to :data:`MAX_GROWTH`, that takes
   them all in (bisection to :data:`GROWTH_STEP`); its deformed cage is the predicted

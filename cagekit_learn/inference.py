@@ -14,7 +14,7 @@ trained with a fixed source); then a result further from
 the target than the predicted cage scaled as the source's box scales onto the target's is
 replaced by that scaling, with one warning (:func:`warn_if_worse_than_scaling`;
 ``scaling_fallback=False``, ``cagekit deform --keep-prediction``, keeps the network's
-result and still warns).
+(polished) result and still warns).
 
 A model trained with a fixed source (``cagekit train --fixed-source``) carries the
 template's normalised samples (``model.fixed_source``); :func:`predict_fixed_source` and
@@ -217,9 +217,9 @@ def deform_with_model(model: NeuralCages, V_src: ArrayLike, F_src: ArrayLike | N
         energy of :func:`cagekit.deform`, as a :class:`cagekit.deformation.CageProblem`
         solved by :func:`cagekit.deformation.solve` in the unit frames).
     options : cagekit.DeformOptions, optional
-        When refining, the energy's terms and the solver's budget (``symmetry``,
-        ``weights``, ``samples``, ``shape_points``, ``reference``, ``max_evaluations``,
-        ``tolerance``, ``target_kind``); the refinement runs in the unit frames the
+        When refining or polishing, the energy's terms and (refining) the solver's
+        budget (``symmetry``, ``weights``, ``samples``, ``shape_points``, ``reference``,
+        ``max_evaluations``, ``tolerance``, ``target_kind``); both run in the unit frames the
         prediction is in (:class:`cagekit.deformation.CageProblem`), with the
         coordinates the model was trained with (``coords``, ``method``, ``faces`` and
         ``check`` do not apply). Unless ``weights`` sets ``"cage"`` (or ``reference`` is
@@ -239,15 +239,18 @@ def deform_with_model(model: NeuralCages, V_src: ArrayLike, F_src: ArrayLike | N
         box maps onto the target's, the source moved by it: with MVC exactly the source
         scaled (``cagekit deform --method scale``), with Green coordinates, which keep
         angles, near it. True hands that on instead (method ``"scale"``, the scaled
-        cage as the deformed cage); False keeps the network's result. With ``polish``
-        the polished result is compared (on fresh samples, as always).
+        cage as the deformed cage); False keeps the network's result (polished, with
+        ``polish``: the polished result is what is compared, on fresh samples).
     polish : int, optional
         Without ``refine``: evaluations of the refinement's energy (``options``' terms,
         :data:`POLISH_SAMPLES` samples) that polish the network's result, started from its
-        predicted deformation; 0 hands on the network's result as it is. Default
-        :data:`POLISH_EVALUATIONS` (0.05-0.06 s on a 6,000-vertex chair), or 0 for a
-        model trained with a fixed source, whose targets correspond vertex for vertex
-        (the energy's Chamfer term would not keep that).
+        predicted deformation (``options``' terms; its ``samples`` and
+        ``max_evaluations`` do not apply); 0 hands on the network's result as it is.
+        Default :data:`POLISH_EVALUATIONS` (about 0.06 s more than the network alone on
+        real seats of 1,000-12,000 vertices, on 2 cores), or 0 for a model trained with a
+        fixed source, whose targets correspond vertex for vertex (the energy's Chamfer
+        term would not keep that), and with ``refine``. A positive ``polish`` with
+        ``refine`` is refused.
 
     Returns
     -------
@@ -276,8 +279,12 @@ def deform_with_model(model: NeuralCages, V_src: ArrayLike, F_src: ArrayLike | N
     options = DeformOptions() if options is None else options
     if polish is None:
         polish = 0 if getattr(model, "fixed_source", None) is not None else POLISH_EVALUATIONS
-    if isinstance(polish, bool) or not isinstance(polish, (int, np.integer)) or polish < 0:
-        raise InputError(f"polish must be an integer >= 0, got {polish!r}")
+        if refine:
+            polish = 0
+    polish = _checked_polish(polish)
+    if refine and polish:
+        raise InputError("polish applies without refine (the refinement runs to "
+                         "options.max_evaluations)")
     if not isinstance(options, DeformOptions):
         raise InputError(f"options must be DeformOptions, got {type(options).__name__}")
     Vs, Fs, Vt, Ft = _shapes(V_src, F_src, V_tgt, F_tgt)
@@ -314,6 +321,7 @@ def deform_with_model(model: NeuralCages, V_src: ArrayLike, F_src: ArrayLike | N
                                     weights=_refine_weights(options)))
             polished = solve(problem, deformed_n, max_evaluations=polish,
                              tolerance=options.tolerance)
+            result.set_solution(problem, polished)  # the energy, terms and evaluations
             move, used_f = problem.vertices_of, problem.cage_f
             moved_n, deformed_n = polished.vertices, polished.deformed_cage
         else:
@@ -399,6 +407,15 @@ def warn_if_worse_than_scaling(Vs_n: ArrayLike, Fs: ArrayLike | None, Vt_n: Arra
     return True
 
 
+def _checked_polish(polish):
+    """``polish`` as an int >= 0 (None stays None), or InputError."""
+    if polish is None:
+        return None
+    if isinstance(polish, bool) or not isinstance(polish, (int, np.integer)) or polish < 0:
+        raise InputError(f"polish must be an integer >= 0, got {polish!r}")
+    return int(polish)
+
+
 def _refine_weights(options: DeformOptions):
     """The caller's weights, with the cage term at :data:`REFINE_CAGE_WEIGHT` unless set."""
     if "cage" in (options.weights or {}) or options.reference != "aligned":
@@ -437,7 +454,9 @@ class ModelDeformer:
     def __init__(self, path: str, refine: bool = False, scaling_fallback: bool = True,
                  polish: int | None = None):
         self.path, self.refine = path, bool(refine)
-        self.scaling_fallback, self.polish = bool(scaling_fallback), polish
+        self.scaling_fallback, self.polish = bool(scaling_fallback), _checked_polish(polish)
+        if self.refine and self.polish:
+            raise InputError("polish applies without refine")
         self._model: tuple[NeuralCages, int] | None = None
 
     def __getstate__(self):

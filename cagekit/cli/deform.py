@@ -159,9 +159,9 @@ def _load_landmark_pair(src_path, tgt_path):
                    "network's result (default 20 for a model of shapes, 0 for one "
                    "trained with --fixed-source; 0: the network's result as it is).")
 @click.option("--keep-prediction", is_flag=True,
-              help="With --model: write the network's result even where the predicted "
-                   "cage scaled onto TARGET's box comes nearer TARGET (by default that "
-                   "scaling is written instead, with a warning).")
+              help="With --model: write the network's (polished) result even where the "
+                   "predicted cage scaled onto TARGET's box comes nearer TARGET (by "
+                   "default that scaling is written instead, with a warning).")
 @preview_up_option
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
               help="Seed of the samples (and of the fitted cage).")

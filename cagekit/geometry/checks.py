@@ -1,7 +1,7 @@
 """Checked shapes: vertices ``(n, 3)`` float64, faces ``(m, 3)`` int64 (libigl's layout).
 
-A point cloud is a mesh with no faces (``F`` is ``None`` or has zero rows). Each function
-raises :class:`cagekit.errors.InputError` for non-finite coordinates, wrong shapes,
+A point cloud is a mesh with no faces (``F`` is ``None`` or has zero rows). The ``as_*``
+functions raise :class:`cagekit.errors.InputError` for non-finite coordinates, wrong shapes,
 out-of-range indices and empty input.
 """
 
@@ -209,7 +209,8 @@ def unique_rows(rows: ArrayLike) -> tuple[Ints, Ints]:
     numpy compares whole rows as records, which is slow (12 ms for the 25,000 edges of a
     4,000-vertex chair); the rows are numbered here by ``sum_j row_j * base^(c - 1 - j)``
     (``base`` one more than the largest entry), which orders them as numpy does, so the
-    results are numpy's exactly. Rows whose key would not fit in 62 bits take numpy's way.
+    results are numpy's exactly. Rows whose key would not fit in 62 bits, and rows with a
+    negative entry, take numpy's way. Empty rows are accepted.
 
     Parameters
     ----------
@@ -233,11 +234,11 @@ def unique_rows(rows: ArrayLike) -> tuple[Ints, Ints]:
     R = np.asarray(rows)
     if R.ndim != 2 or (R.size and not np.issubdtype(R.dtype, np.integer)):
         raise InputError(f"rows must be an (m, c) integer array, got shape {R.shape}")
-    R = R.astype(np.int64, copy=False)
-    base = int(R.max()) + 1 if R.size else 1
-    if R.size and (int(R.min()) < 0 or R.shape[1] * np.log2(base) >= 62):
+    top = int(R.max()) if R.size else 0
+    if R.size and (int(R.min()) < 0 or R.shape[1] * np.log2(top + 1) >= 62):
         _, first, inverse = np.unique(R, axis=0, return_index=True, return_inverse=True)
         return first.astype(np.int64), inverse.reshape(-1).astype(np.int64)
+    R, base = R.astype(np.int64), top + 1
     key = np.zeros(len(R), dtype=np.int64)
     for column in R.T:
         key = key * base + column

@@ -25,6 +25,7 @@ from cagekit_learn.inference import (  # noqa: E402
     POLISH_EVALUATIONS,
     POLISH_SAMPLES,
     REFINE_CAGE_WEIGHT,
+    ModelDeformer,
     deform_with_model,
     predict,
 )
@@ -118,9 +119,19 @@ def test_polish_is_the_refinement_energy_a_few_steps_from_the_prediction(run_dir
     np.testing.assert_allclose(frame_t.to_unit(polished.vertices), solution.vertices,
                                atol=1e-6)
     assert solution.energy < problem.energy(start)[0]  # it moved, downhill
+    # the polish's evaluations and energy are reported (--json prints them)
+    assert polished.iterations == solution.evaluations > 1
+    assert polished.energy == pytest.approx(solution.energy, rel=1e-6)
+    assert "chamfer" in polished.losses and polished.weights["cage"] == REFINE_CAGE_WEIGHT
     for bad in (-1, 2.5, True):
         with pytest.raises(InputError, match="polish"):
             deform_with_model(model, *src, *tgt, points=256, polish=bad)
+        with pytest.raises(InputError, match="polish"):
+            ModelDeformer(str(run_dir), polish=bad)
+    with pytest.raises(InputError, match="polish applies without refine"):
+        deform_with_model(model, *src, *tgt, points=256, refine=True, polish=3)
+    with pytest.raises(InputError, match="polish applies without refine"):
+        ModelDeformer(str(run_dir), refine=True, polish=3)
 
 
 # a few steps of training: its result is worse than box scaling (warned)
@@ -440,3 +451,10 @@ def test_the_model_warns_on_a_pair_that_scaling_serves_better(run_dir):
     assert np.allclose(result.cage_v, kept.cage_v)
     assert np.allclose(bind(V, result.cage_v, result.cage_f).deform(result.deformed_cage_v),
                        result.vertices, atol=1e-9)
+    # the polished path: one evaluation leaves the network's result, which scaling beats
+    with pytest.warns(CagekitWarning, match="the scaling is returned instead"):
+        polished = deform_with_model(model, V, F, V * [1.0, 2.0, 1.0], F, points=256,
+                                     polish=np.int64(1))
+    assert polished.method == "scale" and polished.iterations == 1
+    assert np.allclose(polished.vertices, V * [1.0, 2.0, 1.0], atol=1e-9)
+    assert np.allclose(polished.cage_v, kept.cage_v)
