@@ -276,7 +276,7 @@ def _write_obj(path, V, V0, F0, source):
     lines = _obj_lines(source)
     corners, normals = _obj_corners(lines, source)
     pairs, new_normals = _obj_carried_normals(V0, V, corners, normals)
-    src_folder = os.path.dirname(os.path.abspath(os.fspath(source)))
+    src_folder = _material_folder(source, lines)
     text, vertex, normals_written, face, materials, copies = [], 0, False, 0, [], []
     previous = set(_previous_material_files(path))  # read once, before it is replaced
     for line in lines:
@@ -303,6 +303,23 @@ def _write_obj(path, V, V0, F0, source):
         handle.write("\n".join(text) + "\n")
     for mtl, copy in copies:
         _copy_mtl(mtl, copy)
+
+
+def _material_folder(source, lines):
+    """Where the source's material files are looked for: beside the path given, or, for a
+    symbolic link whose material files are not there, beside the file it points to (where
+    the model's own files are)."""
+    given = os.path.dirname(os.path.abspath(os.fspath(source)))
+    real = os.path.dirname(os.path.realpath(os.fspath(source)))
+    if real == given:
+        return given
+    names = [name for line in lines if line.split()[:1] == ["mtllib"]
+             for name in _mtllib_names(line, given)]
+
+    def found(folder):
+        return sum(os.path.isfile(_beside(name, folder)) for name in names)
+
+    return real if found(real) > found(given) else given
 
 
 def _mtllib(line, src_folder, out_path, written, copies, previous):

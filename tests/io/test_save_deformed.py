@@ -106,6 +106,20 @@ def test_obj_written_beside_the_source_uses_its_material_file(textured_obj):
     assert not (out.parent / "wood.png").exists()  # reachable already: not copied
 
 
+def test_a_linked_source_takes_its_material_file_from_the_file_linked_to(textured_obj,
+                                                                         tmp_path):
+    link = tmp_path / "links" / "chair.obj"
+    link.parent.mkdir()
+    link.symlink_to(textured_obj)
+    V, F = load_mesh(link)
+    out = tmp_path / "links" / "moved.obj"
+    save_deformed(out, _moved(V), F, link)
+    assert _records(out, "mtllib") == ["mtllib moved.mtl"]
+    assert "map_Kd wood.png" in (out.parent / "moved.mtl").read_text()
+    assert (out.parent / "wood.png").read_bytes() == \
+        (textured_obj.parent / "maps" / "wood.png").read_bytes()
+
+
 @pytest.mark.parametrize("encoding", ["binary", "ascii"])
 def test_ply_keeps_colours_and_carries_normals(tmp_path, encoding):
     mesh = trimesh.creation.icosphere(subdivisions=2)
