@@ -102,6 +102,9 @@ def load_checkpoint(path: str | os.PathLike,
         payload = torch.load(path, map_location=map_location, weights_only=True)
     except Exception as exc:  # noqa: BLE001 - any failure is the file's fault here
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        if first.startswith("Weights only load failed"):  # torch's advice is not for us
+            first = ("torch's safe loader refused it: not a file torch saved, or one "
+                     "holding more than tensors and plain values")
         raise InputError(f"{path}: not a readable checkpoint ({first})"
                          f"{_hidden_model(given)}") from None
     if not isinstance(payload, dict) or payload.get("format") != FORMAT or "model" not in payload:
