@@ -71,6 +71,8 @@ POLISH_SAMPLES = 1000
 #: distance 1, 0.90, 0.87, 0.85 of the network's alone; 0.04, 0.09, 0.12, 0.14 s a pair
 #: on a 2-core AMD EPYC); docs/benchmarks.md, "The network's result polished"
 POLISH_EVALUATIONS = 20
+#: the most evaluations a polish may ask for (a longer one is the refinement: ``refine``)
+MAX_POLISH = 10_000
 
 
 def predict(model: NeuralCages, source_points: ArrayLike,
@@ -411,8 +413,10 @@ def _checked_polish(polish):
     """``polish`` as an int >= 0 (None stays None), or InputError."""
     if polish is None:
         return None
-    if isinstance(polish, bool) or not isinstance(polish, (int, np.integer)) or polish < 0:
-        raise InputError(f"polish must be an integer >= 0, got {polish!r}")
+    if (isinstance(polish, bool) or not isinstance(polish, (int, np.integer))
+            or not 0 <= polish <= MAX_POLISH):
+        raise InputError(f"polish must be an integer from 0 to {MAX_POLISH:,} (a longer "
+                         f"optimisation is the refinement), got {polish!r}")
     return int(polish)
 
 

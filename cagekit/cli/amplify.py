@@ -46,7 +46,7 @@ def _pairs_option(ctx, param, value):
               help="Run folder or checkpoint of cagekit train, or a shipped model's name "
                    "(chairs, tables), with --method model.")
 @click.option("--refine", is_flag=True, help="With --model: optimise each predicted cage.")
-@click.option("--polish", type=click.IntRange(min=0), default=None,
+@click.option("--polish", type=click.IntRange(min=0, max=10_000), default=None,
               help="With --model: evaluations of the per-pair energy that polish each "
                    "network result (default 20, or 0 for a --fixed-source model; 0: none).")
 @click.option("--coords", type=click.Choice(list(DEFORM_COORDINATE_METHODS)), default="mvc",
@@ -119,7 +119,10 @@ def amplify(ctx: click.Context, collection: str, out: str, variations: int | Non
         raise click.UsageError("--method model and --model RUN_DIR go together")
     if refine and method != "model":
         raise click.UsageError("--refine applies to --method model")
-    if polish is not None and (method != "model" or refine):
+    if polish is not None and method != "model":
+        raise click.UsageError("--polish polishes a model's predictions: it needs --method "
+                               "model")
+    if polish is not None and refine:
         raise click.UsageError("--polish applies to --method model without --refine")
     if coords != "mvc" and method != "cage":
         raise click.UsageError("--coords green applies to --method cage")

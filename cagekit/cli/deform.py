@@ -154,7 +154,7 @@ def _load_landmark_pair(src_path, tgt_path):
 @click.option("--refine", is_flag=True,
               help="With --model: then optimise the predicted cage per pair (as --method "
                    "cage, started from the prediction).")
-@click.option("--polish", type=click.IntRange(min=0), default=None,
+@click.option("--polish", type=click.IntRange(min=0, max=10_000), default=None,
               help="With --model: evaluations of the per-pair energy that polish the "
                    "network's result (default 20 for a model of shapes, 0 for one "
                    "trained with --fixed-source; 0: the network's result as it is).")
@@ -203,7 +203,9 @@ def deform(ctx: click.Context, source: str, target: str, out: str, method: str,
                                "only, not to --model")
     if keep_prediction and (not model_path or refine):
         raise click.UsageError("--keep-prediction applies to --model without --refine")
-    if polish is not None and (not model_path or refine):
+    if polish is not None and not model_path:
+        raise click.UsageError("--polish polishes a prediction: it needs --model")
+    if polish is not None and refine:
         raise click.UsageError("--polish applies to --model without --refine")
     from cagekit.deformation import DeformOptions
 

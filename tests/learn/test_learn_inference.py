@@ -123,7 +123,7 @@ def test_polish_is_the_refinement_energy_a_few_steps_from_the_prediction(run_dir
     assert polished.iterations == solution.evaluations > 1
     assert polished.energy == pytest.approx(solution.energy, rel=1e-6)
     assert "chamfer" in polished.losses and polished.weights["cage"] == REFINE_CAGE_WEIGHT
-    for bad in (-1, 2.5, True):
+    for bad in (-1, 2.5, True, 10**20):
         with pytest.raises(InputError, match="polish"):
             deform_with_model(model, *src, *tgt, points=256, polish=bad)
         with pytest.raises(InputError, match="polish"):
@@ -197,7 +197,7 @@ def test_deform_model_command(run_dir, pair, tmp_path, capsys):
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--model", "{bad}"], "not a readable checkpoint"),
+    (["--model", "{bad}"], "not a readable checkpoint (torch's safe loader refused it"),
     (["--model", "{missing}"], "no such checkpoint"),
     (["--refine"], "needs --model"),
     (["--model", "{run}", "--method", "scale"], "apply to --method cage only"),
@@ -205,8 +205,9 @@ def test_deform_model_command(run_dir, pair, tmp_path, capsys):
     (["--model", "{run}", "--coords", "green"], "--coords green applies"),
     (["--keep-prediction"], "--keep-prediction applies to --model without --refine"),
     (["--model", "{run}", "--refine", "--keep-prediction"], "--keep-prediction applies"),
-    (["--polish", "5"], "--polish applies to --model without --refine"),
-    (["--model", "{run}", "--refine", "--polish", "5"], "--polish applies"),
+    (["--polish", "5"], "--polish polishes a prediction: it needs --model"),
+    (["--model", "{run}", "--refine", "--polish", "5"], "--polish applies to --model without"),
+    (["--model", "{run}", "--polish", "99999999999999999999"], "--polish"),
     (["--model", "{hollow}"], "not a usable cagekit checkpoint"),
 ])
 def test_deform_model_bad_input_exits_2_with_one_line(run_dir, pair, tmp_path, capsys,
@@ -294,7 +295,7 @@ def test_amplify_with_a_model_on_two_workers_matches_one_worker(run_dir, tmp_pat
     assert [r["cd"] for r in raw] != pytest.approx([r["cd"] for r in runs["1"]], rel=1e-6)
     code, _, err = _cli(["amplify", "synthetic:vases:3", "-o", str(tmp_path / "y"),
                          "--variations", "1", "--polish", "3"], capsys)
-    assert code == 2 and "--polish applies to --method model" in err
+    assert code == 2 and "it needs --method model" in err
 
 
 def test_a_model_trained_with_green_coordinates_deforms_with_them(tmp_path, pair, capsys):
