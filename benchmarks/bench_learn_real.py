@@ -16,7 +16,7 @@ seconds a pair:
 - ``learned``: ``--model`` as a user gets it: one forward pass, the full mesh bound to
   the predicted cage, which is checked first (:mod:`cagekit_learn.cage_repair`): grown
   when it leaves part of the source out, replaced by per-pair optimisation (the ``cage``
-  result, one warning) when it cannot be used; the result polished by 20 evaluations of
+  result, one warning) when it cannot be used; the result polished by 15 evaluations of
   the per-pair energy (``--polish``); a result further from the target than box scaling
   (Chamfer of 2,048 samples) is replaced by the scaling (one warning);
 - ``learned-net``: the same with ``--polish 0``: the network's result (checked);

@@ -67,10 +67,11 @@ REFINE_CAGE_WEIGHT = 0.01
 POLISH_SAMPLES = 1000
 #: evaluations of the refinement's energy that polish the network's result by default
 #: (``polish`` of :func:`deform_with_model`, ``cagekit deform --polish``): chosen on 24
-#: pairs of the ``chairs`` model's *training* seats (0, 10, 20, 30: per-pair Chamfer
-#: distance 1, 0.90, 0.87, 0.85 of the network's alone; 0.04, 0.09, 0.12, 0.14 s a pair
-#: on a 2-core AMD EPYC); docs/benchmarks.md, "The network's result polished"
-POLISH_EVALUATIONS = 20
+#: pairs of the ``chairs`` model's *training* seats (0, 10, 15, 20, 30: per-pair Chamfer
+#: distance 1, 0.90, 0.870, 0.866, 0.85 of the network's alone, worst part 0.144, 0.189,
+#: 0.155, 0.156, 0.143%; 15 is 20's result at 0.01 s less a pair on a 2-core AMD EPYC);
+#: docs/benchmarks.md, "The network's result polished"
+POLISH_EVALUATIONS = 15
 #: the most evaluations a polish may ask for (a longer one is the refinement: ``refine``)
 MAX_POLISH = 10_000
 

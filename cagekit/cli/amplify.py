@@ -48,7 +48,7 @@ def _pairs_option(ctx, param, value):
 @click.option("--refine", is_flag=True, help="With --model: optimise each predicted cage.")
 @click.option("--polish", type=click.IntRange(min=0, max=10_000), default=None,
               help="With --model: evaluations of the per-pair energy that polish each "
-                   "network result (default 20, or 0 for a --fixed-source model; 0: none).")
+                   "network result (default 15, or 0 for a --fixed-source model; 0: none).")
 @click.option("--coords", type=click.Choice(list(DEFORM_COORDINATE_METHODS)), default="mvc",
               show_default=True,
               help="Cage coordinates of --method cage (green: organic shapes; see "

@@ -156,7 +156,7 @@ def _load_landmark_pair(src_path, tgt_path):
                    "cage, started from the prediction).")
 @click.option("--polish", type=click.IntRange(min=0, max=10_000), default=None,
               help="With --model: evaluations of the per-pair energy that polish the "
-                   "network's result (default 20 for a model of shapes, 0 for one "
+                   "network's result (default 15 for a model of shapes, 0 for one "
                    "trained with --fixed-source; 0: the network's result as it is).")
 @click.option("--keep-prediction", is_flag=True,
               help="With --model: write the network's (polished) result even where the "
