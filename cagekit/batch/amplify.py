@@ -57,7 +57,7 @@ from cagekit.batch.crossing import part_crossings
 from cagekit.batch.sheet import SHEET_COLUMNS, Tile, cut_middle, draw_contact_sheet
 from cagekit.cage.fitting import fit_cage
 from cagekit.deformation import DeformOptions, DeformResult, deform
-from cagekit.errors import CagekitWarning, InputError
+from cagekit.errors import CagekitWarning, InputError, MeshFileWarning
 from cagekit.geometry.frame import Frame
 from cagekit.interrupts import sigint_deferred
 from cagekit.io import (
@@ -1049,10 +1049,14 @@ class _Runner:
             for future in running:
                 future.cancel()
 
-    def _relay(self, caught):
+    def _relay(self, caught, pair=None):
         """Issue again, here, the warnings an item issued in its worker: each message once
-        a batch (each worker issues a library's one-time warnings once)."""
+        a batch (each worker issues a library's one-time warnings once). A deformation's
+        own warnings (cagekit's, but for a file's) are about one pair: ``pair`` names it."""
         for message, category, filename, lineno in caught:
+            if (pair is not None and issubclass(category, CagekitWarning)
+                    and not issubclass(category, MeshFileWarning)):
+                message = f"{pair}: {message}"
             if (category, message) not in self.relayed:
                 self.relayed.add((category, message))
                 warnings.warn_explicit(message, category, filename, lineno)
@@ -1073,7 +1077,7 @@ class _Runner:
         for name in _FIGURES:
             row[name] = result.get(name)
         row["deformed_by"] = result.get("deformed_by", "")
-        self._relay(result.get("warnings", ()))
+        self._relay(result.get("warnings", ()), f"{item.source.name} -> {item.target.name}")
         if result["status"] == "ok":
             row["status"], row["reason"] = _verdict(row, *self.limits)
             if row["status"] == "ok" or not self.drop_rejected:

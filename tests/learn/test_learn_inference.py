@@ -287,10 +287,13 @@ def test_amplify_with_a_model_on_two_workers_matches_one_worker(run_dir, tmp_pat
                          "--variations", "1", "--method", "model"], capsys)
     assert code == 2 and "--model" in err
     # --polish 0: the network's own results, which the default polish moved
-    code, _, _ = _cli(["amplify", "synthetic:vases:3", "-o", str(tmp_path / "raw"),
-                       "--variations", "3", "--method", "model", "--model", str(run_dir),
-                       "--workers", "1", "--polish", "0"], capsys)
+    code, _, err = _cli(["amplify", "synthetic:vases:3", "-o", str(tmp_path / "raw"),
+                         "--variations", "3", "--method", "model", "--model", str(run_dir),
+                         "--workers", "1", "--polish", "0"], capsys)
     assert code == 0
+    # a few steps of training: scaling is handed on, and each warning names its pair
+    handed = [line for line in err.splitlines() if "the scaling is returned instead" in line]
+    assert handed and all(" -> " in line.split(": the model's result")[0] for line in handed)
     raw = json.loads((tmp_path / "raw" / "manifest.json").read_text())["items"]
     assert [r["cd"] for r in raw] != pytest.approx([r["cd"] for r in runs["1"]], rel=1e-6)
     code, _, err = _cli(["amplify", "synthetic:vases:3", "-o", str(tmp_path / "y"),
