@@ -1158,12 +1158,20 @@ def contact_sheet(rows: Sequence[dict[str, Any]], items: Sequence[Item], folder:
                           load_shape_of(item.target.location), load_mesh(file),
                           pair_title(short[row["source"]], short[row["target"]],
                                      width=_SHEET_TITLE_CHARS),
-                          _decisive_figures(row), row["status"], row.get("reason", "")))
+                          _decisive_figures(row), row["status"], row.get("reason", ""),
+                          _handed_on(row)))
         if len(tiles) == limit:
             break
     if not tiles:
         raise InputError("no finished variation to show on a contact sheet")
     return draw_contact_sheet(tiles, path, columns)
+
+
+def _handed_on(row) -> str:
+    """What made a model's item instead of the model, for its tile (``""``: the model)."""
+    if row.get("method") != "model":
+        return ""
+    return {"scale": "box scaling", "cage": "a fitted cage"}.get(row.get("deformed_by"), "")
 
 
 def pair_title(source: str, target: str, width: int = 40) -> str:

@@ -4,7 +4,8 @@ Each :class:`Tile` shows one item: its variation large, the source and the targe
 beside it, and under them three lines: the pair (short names, ``source -> target``), the
 figures the filter decided on (CD x1e2, worst part's non-affinity, crossing parts), and
 the status in its colour (ok green; rejected red when parts cross, orange otherwise) with
-the reason. Tiles stand :data:`SHEET_COLUMNS` to a line (fewer when there are fewer), as
+the reason, and what made the variation when a model's result was handed on (``ok, by box
+scaling``). Tiles stand :data:`SHEET_COLUMNS` to a line (fewer when there are fewer), as
 many lines as needed. :func:`cagekit.batch.amplify.contact_sheet` builds the tiles of a
 batch.
 """
@@ -25,7 +26,7 @@ from cagekit.io.files import atomic_output
 from cagekit.render import render_meshes
 
 __all__ = ["SHEET_COLUMNS", "STATUS_COLOURS", "TILE_SIZE", "Tile", "cut_middle",
-           "draw_contact_sheet", "sheet_size", "status_colour"]
+           "draw_contact_sheet", "sheet_size", "status_colour", "tile_verdict"]
 
 #: tiles side by side on a line of the sheet, at most
 SHEET_COLUMNS = 5
@@ -55,6 +56,10 @@ class Tile:
         ``"ok"`` or ``"rejected"``.
     reason : str
         Why it was rejected (``""`` when ok).
+    handed_on : str
+        What made the variation instead of the batch's method, when something did (a
+        model's result handed on as ``"box scaling"`` or ``"a fitted cage"``); ``""``
+        otherwise.
     """
 
     source: tuple[np.ndarray, np.ndarray]
@@ -64,6 +69,21 @@ class Tile:
     figures: str
     status: str
     reason: str = ""
+    handed_on: str = ""
+
+
+def tile_verdict(tile: Tile) -> str:
+    """The verdict a tile shows: ``ok`` or ``REJECTED: reason``, and what made the
+    variation when the batch's method did not.
+
+    Examples
+    --------
+    >>> empty = (np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64))
+    >>> tile_verdict(Tile(empty, empty, empty, "a -> b", "", "ok", "", "box scaling"))
+    'ok, by box scaling'
+    """
+    verdict = "ok" if tile.status == "ok" else f"REJECTED: {tile.reason}"
+    return f"{verdict}, by {tile.handed_on}" if tile.handed_on else verdict
 
 
 def status_colour(status: str, reason: str = "") -> str:
@@ -178,9 +198,8 @@ def _draw_tile(fig, tile: Tile, origin, sheet, scratch: str) -> None:
                                  linewidth=1.5))
     lines = [(cut_middle(tile.title, _TITLE_CHARS), 10, "bold", "black"),
              (cut_middle(tile.figures, _LINE_CHARS), 9, "normal", "0.25")]
-    verdict = "ok" if tile.status == "ok" else f"REJECTED: {tile.reason}"
     lines += [(cut_middle(text, _BOLD_CHARS), 9, "bold", colour)
-              for text in textwrap.wrap(verdict, _BOLD_CHARS)[:2]]
+              for text in textwrap.wrap(tile_verdict(tile), _BOLD_CHARS)[:2]]
     top = y0 + text_h - 4
     for text, size, weight, ink in lines:
         fig.text((x0 + 6) / sheet[0], top / sheet[1], _fit_pixels(text, size, weight, w - 12),

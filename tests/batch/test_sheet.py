@@ -15,6 +15,7 @@ from cagekit.batch.sheet import (
     draw_contact_sheet,
     sheet_size,
     status_colour,
+    tile_verdict,
 )
 from cagekit.datasets import synthetic
 from cagekit.errors import InputError
@@ -128,3 +129,23 @@ def test_the_drawn_sheet_has_its_size_and_each_tile_its_status_colour(tmp_path):
     assert not has(red, 2, 1) and not has(green, 2, 1)  # no tile 7: blank
     with pytest.raises(InputError, match="at least one tile"):
         draw_contact_sheet([], tmp_path / "empty.png")
+
+
+def test_a_tile_says_what_made_its_variation_when_the_method_did_not():
+    from cagekit.batch.amplify import _handed_on
+
+    def tile(status, reason="", handed_on=""):
+        return Tile(TETRA, TETRA, TETRA, "a -> b", "", status, reason, handed_on)
+
+    assert tile_verdict(tile("ok")) == "ok"
+    assert tile_verdict(tile("rejected", "CD x1e2 6.00 > 5.00")) == \
+        "REJECTED: CD x1e2 6.00 > 5.00"
+    assert tile_verdict(tile("ok", "", "box scaling")) == "ok, by box scaling"
+    assert tile_verdict(tile("rejected", "parts cross: 1 and 2", "a fitted cage")) == \
+        "REJECTED: parts cross: 1 and 2, by a fitted cage"
+    # from a manifest's row: only a model's items are handed on
+    assert _handed_on({"method": "model", "deformed_by": "scale"}) == "box scaling"
+    assert _handed_on({"method": "model", "deformed_by": "cage"}) == "a fitted cage"
+    assert _handed_on({"method": "model", "deformed_by": "learned"}) == ""
+    assert _handed_on({"method": "scale", "deformed_by": "scale"}) == ""
+    assert _handed_on({"method": "cage", "deformed_by": "cage"}) == ""
