@@ -72,7 +72,8 @@ POLISH_SAMPLES = 1000
 #: 0.155, 0.156, 0.143%; 15 is 20's result at 0.01 s less a pair on a 2-core AMD EPYC);
 #: docs/benchmarks.md, "The network's result polished"
 POLISH_EVALUATIONS = 15
-#: the most evaluations a polish may ask for (a longer one is the refinement: ``refine``)
+#: the most evaluations a polish may ask for (a longer one is the refinement: ``refine``;
+#: ``--polish`` of ``cagekit deform`` and ``cagekit amplify`` has the same bound)
 MAX_POLISH = 10_000
 
 
@@ -249,7 +250,7 @@ def deform_with_model(model: NeuralCages, V_src: ArrayLike, F_src: ArrayLike | N
         :data:`POLISH_SAMPLES` samples) that polish the network's result, started from its
         predicted deformation (``options``' terms; its ``samples`` and
         ``max_evaluations`` do not apply); 0 hands on the network's result as it is.
-        Default :data:`POLISH_EVALUATIONS` (about 0.06 s more than the network alone on
+        Default :data:`POLISH_EVALUATIONS` (about 0.05 s more than the network alone on
         real seats of 1,000-12,000 vertices, on 2 cores), or 0 for a model trained with a
         fixed source, whose targets correspond vertex for vertex (the energy's Chamfer
         term would not keep that), and with ``refine``. A positive ``polish`` with

@@ -4,8 +4,8 @@ Each :class:`Tile` shows one item: its variation large, the source and the targe
 beside it, and under them three lines: the pair (short names, ``source -> target``), the
 figures the filter decided on (CD x1e2, worst part's non-affinity, crossing parts), and
 the status in its colour (ok green; rejected red when parts cross, orange otherwise) with
-the reason, and what made the variation when a model's result was handed on (``ok, by box
-scaling``). Tiles stand :data:`SHEET_COLUMNS` to a line (fewer when there are fewer), as
+the reason, and what made the variation when a model's result was handed on (``ok (by box
+scaling)``). Tiles stand :data:`SHEET_COLUMNS` to a line (fewer when there are fewer), as
 many lines as needed. :func:`cagekit.batch.amplify.contact_sheet` builds the tiles of a
 batch.
 """
@@ -80,10 +80,10 @@ def tile_verdict(tile: Tile) -> str:
     --------
     >>> empty = (np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64))
     >>> tile_verdict(Tile(empty, empty, empty, "a -> b", "", "ok", "", "box scaling"))
-    'ok, by box scaling'
+    'ok (by box scaling)'
     """
-    verdict = "ok" if tile.status == "ok" else f"REJECTED: {tile.reason}"
-    return f"{verdict}, by {tile.handed_on}" if tile.handed_on else verdict
+    by = f" (by {tile.handed_on})" if tile.handed_on else ""
+    return f"ok{by}" if tile.status == "ok" else f"REJECTED{by}: {tile.reason}"
 
 
 def status_colour(status: str, reason: str = "") -> str:

@@ -307,17 +307,17 @@ def _write_obj(path, V, V0, F0, source):
 
 def _material_folder(source, lines):
     """Where the source's material files are looked for: beside the path given, or, for a
-    symbolic link whose material files are not there, beside the file it points to (where
-    the model's own files are)."""
+    symbolic link whose material files are not there, beside the file it finally points to
+    (where the model's own files are; the links between are not searched)."""
     given = os.path.dirname(os.path.abspath(os.fspath(source)))
     real = os.path.dirname(os.path.realpath(os.fspath(source)))
     if real == given:
         return given
-    names = [name for line in lines if line.split()[:1] == ["mtllib"]
-             for name in _mtllib_names(line, given)]
+    mtllibs = [line for line in lines if line.split()[:1] == ["mtllib"]]
 
-    def found(folder):
-        return sum(os.path.isfile(_beside(name, folder)) for name in names)
+    def found(folder):  # names split as that folder's files read them (names with spaces)
+        return sum(os.path.isfile(_beside(name, folder))
+                   for line in mtllibs for name in _mtllib_names(line, folder))
 
     return real if found(real) > found(given) else given
 

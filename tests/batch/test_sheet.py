@@ -140,9 +140,9 @@ def test_a_tile_says_what_made_its_variation_when_the_method_did_not():
     assert tile_verdict(tile("ok")) == "ok"
     assert tile_verdict(tile("rejected", "CD x1e2 6.00 > 5.00")) == \
         "REJECTED: CD x1e2 6.00 > 5.00"
-    assert tile_verdict(tile("ok", "", "box scaling")) == "ok, by box scaling"
+    assert tile_verdict(tile("ok", "", "box scaling")) == "ok (by box scaling)"
     assert tile_verdict(tile("rejected", "parts cross: 1 and 2", "a fitted cage")) == \
-        "REJECTED: parts cross: 1 and 2, by a fitted cage"
+        "REJECTED (by a fitted cage): parts cross: 1 and 2"
     # from a manifest's row: only a model's items are handed on
     assert _handed_on({"method": "model", "deformed_by": "scale"}) == "box scaling"
     assert _handed_on({"method": "model", "deformed_by": "cage"}) == "a fitted cage"

@@ -1,5 +1,6 @@
 """Tests of writing a deformed shape as a copy of its source file (cagekit.io.assets)."""
 
+import shutil
 import warnings
 
 import numpy as np
@@ -118,6 +119,19 @@ def test_a_linked_source_takes_its_material_file_from_the_file_linked_to(texture
     assert "map_Kd wood.png" in (out.parent / "moved.mtl").read_text()
     assert (out.parent / "wood.png").read_bytes() == \
         (textured_obj.parent / "maps" / "wood.png").read_bytes()
+    # a material file whose name has a space, beside the file linked to only
+    folder = tmp_path / "spaced"
+    shutil.copytree(textured_obj.parent / "maps", folder / "maps")
+    (folder / "my cube.mtl").write_text((textured_obj.parent / "cube.mtl").read_text())
+    spaced = folder / "spaced.obj"
+    spaced.write_text(textured_obj.read_text().replace("mtllib cube.mtl",
+                                                       "mtllib my cube.mtl"))
+    link = tmp_path / "links" / "spaced.obj"
+    link.symlink_to(spaced)
+    out = tmp_path / "links" / "spaced_moved.obj"
+    save_deformed(out, _moved(V), F, link)
+    assert _records(out, "mtllib") == ["mtllib spaced_moved.mtl"]
+    assert "map_Kd wood.png" in (out.parent / "spaced_moved.mtl").read_text()
 
 
 @pytest.mark.parametrize("encoding", ["binary", "ascii"])
