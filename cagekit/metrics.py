@@ -34,6 +34,7 @@ from scipy.spatial import cKDTree
 
 from cagekit.errors import InputError
 from cagekit.geometry import (
+    as_count,
     as_faces,
     as_shape,
     as_vertices,
@@ -88,9 +89,9 @@ def nearest_residuals(P: np.ndarray, Q: np.ndarray,
     return P - Q[index], index
 
 
-def _nearest_sq(P: np.ndarray, Q: np.ndarray) -> np.ndarray:
+def _nearest_sq(P: np.ndarray, Q: np.ndarray, tree_Q: cKDTree | None = None) -> np.ndarray:
     """Squared distance from each point of P to its nearest point of Q, shape (len(P),)."""
-    diff, _ = nearest_residuals(P, Q)
+    diff, _ = nearest_residuals(P, Q, tree_Q)
     return np.einsum("ij,ij->i", diff, diff)
 
 
@@ -171,10 +172,9 @@ def chamfer(
 
 
 def _chamfer_seeds(seed):
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise InputError(f"seed must be an integer >= 0, got {seed!r}")
+    """The two sample streams' seeds of :func:`chamfer` (``seed`` checked)."""
     return tuple(int(s.generate_state(1)[0])
-                 for s in np.random.SeedSequence(int(seed)).spawn(2))
+                 for s in np.random.SeedSequence(as_count(seed, "seed")).spawn(2))
 
 
 def chamfers_to(versions: list[ArrayLike], Fa: ArrayLike | None, Vb: ArrayLike,
@@ -209,10 +209,7 @@ def chamfers_to(versions: list[ArrayLike], Fa: ArrayLike | None, Vb: ArrayLike,
     out = []
     for V in versions:
         A = as_vertices(sample_surface(V, Fa, n_samples, seed_a), "P")
-        to_b, _ = nearest_residuals(A, B, tree_B)
-        to_a, _ = nearest_residuals(B, A)
-        out.append(float(np.einsum("ij,ij->i", to_b, to_b).mean()
-                         + np.einsum("ij,ij->i", to_a, to_a).mean()))
+        out.append(float(_nearest_sq(A, B, tree_B).mean() + _nearest_sq(B, A).mean()))
     return out
 
 

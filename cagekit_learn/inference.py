@@ -40,7 +40,7 @@ from cagekit.cage import check_cage
 from cagekit.coords import bind
 from cagekit.deformation import CageProblem, DeformOptions, DeformResult, deform, solve
 from cagekit.errors import CageError, CagekitWarning, InputError
-from cagekit.geometry import as_shape
+from cagekit.geometry import as_count, as_shape
 from cagekit.geometry.alignment import box_scale
 from cagekit.geometry.frame import pair_frames
 from cagekit.geometry.sampling import sample_surface
@@ -415,11 +415,11 @@ def _checked_polish(polish):
     """``polish`` as an int >= 0 (None stays None), or InputError."""
     if polish is None:
         return None
-    if (isinstance(polish, bool) or not isinstance(polish, (int, np.integer))
-            or not 0 <= polish <= MAX_POLISH):
-        raise InputError(f"polish must be an integer from 0 to {MAX_POLISH:,} (a longer "
-                         f"optimisation is the refinement), got {polish!r}")
-    return int(polish)
+    polish = as_count(polish, "polish")
+    if polish > MAX_POLISH:
+        raise InputError(f"polish must be at most {MAX_POLISH:,} (a longer optimisation is "
+                         f"the refinement), got {polish}")
+    return polish
 
 
 def _refine_weights(options: DeformOptions):
