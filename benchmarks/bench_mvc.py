@@ -5,6 +5,7 @@ Cases (issue 2):
   (b) 100,000 points bound to a 1,000-face cage;
   (c) 1,000,000 points bound to a 200-face cage: bind time, peak memory, deform time.
 
+cagekit runs twice, in float64 (the default) and with ``dtype=np.float32``.
 Peers, measured in the same run on the same points and cages:
   * VTK's ``vtkMeanValueCoordinatesInterpolator.ComputeInterpolationWeights``, called once per
     point (``pip install -e .[bench]``), the way a Python user would call it;
@@ -69,14 +70,14 @@ def interior_points(v, f, n: int, seed: int = 1):
     return np.vstack(out)[:n]
 
 
-def time_cagekit(p, v, f, repeats: int = 3):
+def time_cagekit(p, v, f, repeats: int = 3, dtype=np.float64):
     from cagekit.coords import mean_value_coordinates
 
-    mean_value_coordinates(p[:64], v, f)  # load the compiled kernel
+    mean_value_coordinates(p[:64], v, f, dtype=dtype)  # load the compiled kernel
     best = np.inf
     for _ in range(repeats):
         t = time.perf_counter()
-        w = mean_value_coordinates(p, v, f)
+        w = mean_value_coordinates(p, v, f, dtype=dtype)
         best = min(best, time.perf_counter() - t)
     return w, best
 
@@ -115,12 +116,16 @@ def run_case(label, n, faces, peer_points):
     p = interior_points(v, f, n)
     D = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
     w, t_ck = time_cagekit(p, v, f)
+    w32, t_32 = time_cagekit(p, v, f, dtype=np.float32)
     q = p[:min(n, peer_points)]
-    rows = [("cagekit (numba)", n, t_ck, n * faces / t_ck)]
+    rows = [("cagekit (numba)", n, t_ck, n * faces / t_ck),
+            ("cagekit, dtype=float32", n, t_32, n * faces / t_32)]
     far = np.sqrt(igl.point_mesh_squared_distance(q, v, f)[0]) >= 1e-4 * D
     lin = np.linalg.norm(w @ v - p, axis=1).max() / D
     result = {"case": label, "faces": faces, "points": n, "cagekit_pairs_per_s": n * faces / t_ck,
-              "cagekit_seconds": t_ck, "linear_precision_over_D": lin}
+              "cagekit_seconds": t_ck, "linear_precision_over_D": lin,
+              "float32_pairs_per_s": n * faces / t_32, "float32_seconds": t_32,
+              "max_diff_float32": float(np.abs(w32.astype(np.float64) - w).max())}
     try:
         w_vtk, t_vtk = time_vtk(q, v, f)
         rows.append(("VTK, once per point", len(q), t_vtk, len(q) * faces / t_vtk))
@@ -198,7 +203,9 @@ def main(argv=None):
         results.append(result)
         for method, pts, secs, rate in rows:
             print(f"{label:<28}{method:<34}{pts:>9}{secs:>10.3f}{rate / 1e6:>10.2f}")
-        extra = [f"linear precision {result['linear_precision_over_D']:.1e} D"]
+        extra = [f"linear precision {result['linear_precision_over_D']:.1e} D",
+                 f"float32 {result['float32_pairs_per_s'] / result['cagekit_pairs_per_s']:.2f}x "
+                 f"float64, max|w32 - w| {result['max_diff_float32']:.1e}"]
         if "speedup_vs_vtk" in result:
             extra += [f"{result['speedup_vs_vtk']:.1f}x VTK",
                       f"max|w - w_vtk| {result['max_diff_vs_vtk']:.1e} "

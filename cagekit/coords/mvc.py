@@ -17,7 +17,9 @@ from the cage's centre rows blend into the affine extension (:data:`FAR_BLEND`,
 :func:`affine_extension_weights`), used alone beyond; points whose coordinates would
 overflow are refused; an unresolvable weight sum falls back to the closest cage point. The
 numba kernel runs ``_LANES`` points at a time, branch-free so that LLVM vectorises it, and
-redoes alone points near a face's plane; scratch is ``O(k + e + m)`` per chunk. See
+redoes alone points near a face's plane; scratch is ``O(k + e + m)`` per chunk. With
+``dtype=np.float32`` the weights come from float32 lanes (:mod:`cagekit.coords.mvc32`),
+and the rows whose estimated rounding error is too large for float32 from this kernel. See
 docs/architecture.md.
 """
 
@@ -27,11 +29,18 @@ from typing import NamedTuple
 
 import numba
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, DTypeLike
 
-from cagekit.cage import cage_topology, check_cage, distance_in_diagonals, winding_numbers
+from cagekit.cage import (
+    CageTopology,
+    cage_topology,
+    check_cage,
+    distance_in_diagonals,
+    winding_numbers,
+)
 from cagekit.coords.fastangle import angle_from_sin_cos, half_angle_over_sin
 from cagekit.coords.lanes import aligned_empty, cross, load_lanes
+from cagekit.coords.mvc32 import mvc_float32
 from cagekit.errors import InputError
 from cagekit.geometry.frame import bounding_box_diagonal
 from cagekit.typed import Floats
@@ -370,7 +379,8 @@ def _mvc_kernel(points, cage_v, faces, edges, face_edges, face_signs, face_n, fa
 
 
 def mean_value_coordinates(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike,
-                           snap: float = DEFAULT_SNAP, check: bool = True) -> Floats:
+                           snap: float = DEFAULT_SNAP, check: bool = True,
+                           dtype: DTypeLike = np.float64) -> Floats:
     """Mean value coordinates of points with respect to a closed triangle cage.
 
     Parameters
@@ -387,10 +397,17 @@ def mean_value_coordinates(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLi
         the cage's bounding-box diagonal (see the module docstring).
     check : bool, default True
         Validate the cage with :func:`cagekit.cage.check_cage`.
+    dtype : {numpy.float64, numpy.float32}, default float64
+        float32 computes the weights in float32 (:mod:`cagekit.coords.mvc32`), about twice
+        as fast, and returns them as float32: each weight within about ``1e-6`` of the
+        float64 weights (an estimate of each row's rounding error sends the rows where
+        float32 cannot promise that, near the plane of a face the point lies outside of,
+        close to an edge seen end on, beyond :data:`FAR_BLEND` ``[0]`` diagonals, to the
+        float64 kernel, rounded afterwards).
 
     Returns
     -------
-    weights : (n, k) float64
+    weights : (n, k) float64 or float32
         Rows sum to one; ``weights @ cage_v`` reproduces the points.
 
     Examples
@@ -400,7 +417,15 @@ def mean_value_coordinates(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLi
     >>> w = mean_value_coordinates([[0.1, 0.2, -0.3]], v, f)
     >>> bool(np.allclose(w.sum(axis=1), 1.0)), bool(np.allclose(w @ v, [[0.1, 0.2, -0.3]]))
     (True, True)
+    >>> w32 = mean_value_coordinates([[0.1, 0.2, -0.3]], v, f, dtype=np.float32)
+    >>> w32.dtype.name, bool(np.abs(w32 - w).max() < 1e-6)
+    ('float32', True)
     """
+    dtype = np.dtype(dtype)
+    if dtype == np.float32:
+        return _coordinates32(points, cage_v, cage_f, snap, check)
+    if dtype != np.float64:
+        raise InputError(f"dtype must be float64 or float32, got {dtype}")
     return _coordinates(points, cage_v, cage_f, snap, check, False).weights
 
 
@@ -444,8 +469,19 @@ def mvc_and_winding(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike,
     return _coordinates(points, cage_v, cage_f, snap, check, True)
 
 
-def _coordinates(points, cage_v, cage_f, snap, check, want_winding) -> WeightsAndWinding:
-    """:func:`mvc_and_winding`; the winding numbers are an empty array unless wanted."""
+class _Frame(NamedTuple):
+    """Points and cage in the cage's normalised frame, with what the kernels need of it."""
+
+    px: np.ndarray        # (n, 3) points relative to the box centre, in diagonals
+    cv: np.ndarray        # (k, 3) cage vertices, likewise
+    faces: np.ndarray     # (m, 3) int64
+    topo: CageTopology
+    normals: np.ndarray   # (m, 3) unit face normals
+    face_off: np.ndarray  # (m,) normals . first vertex
+
+
+def _frame(points, cage_v, cage_f, check) -> _Frame:
+    """Validate the input and move it into the cage's normalised frame."""
     cage_v = np.asarray(cage_v, dtype=np.float64)
     faces = check_cage(cage_v, cage_f) if check else np.asarray(cage_f, dtype=np.int64)
     pts = np.asarray(points, dtype=np.float64)
@@ -462,25 +498,49 @@ def _coordinates(points, cage_v, cage_f, snap, check, want_winding) -> WeightsAn
     cv = np.ascontiguousarray((cage_v - centre) / diag)
     with np.errstate(over="ignore"):
         px = np.ascontiguousarray((pts - centre) / diag)
-    topo = cage_topology(faces)
     normals = np.cross(cv[faces[:, 1]] - cv[faces[:, 0]], cv[faces[:, 2]] - cv[faces[:, 0]])
     norms = np.linalg.norm(normals, axis=1, keepdims=True)
     normals = np.divide(normals, norms, out=np.zeros_like(normals), where=norms > 0)
-    n, k = len(px), len(cv)
+    face_off = np.einsum("ij,ij->i", cv[faces[:, 0]], normals)
+    return _Frame(px, cv, np.ascontiguousarray(faces), cage_topology(faces), normals, face_off)
+
+
+def _float64_rows(fr: _Frame, px, snap, want_winding) -> WeightsAndWinding:
+    """The float64 kernel on points ``px`` of the frame ``fr``, far rows blended."""
+    n, k = len(px), len(fr.cv)
     out = np.empty((n, k), dtype=np.float64)
     winding = np.zeros(n if want_winding else 0)
-    face_off = np.einsum("ij,ij->i", cv[faces[:, 0]], normals)
     if n:
-        _mvc_kernel(px, cv, np.ascontiguousarray(faces), topo.edges, topo.face_edges,
-                    topo.face_edge_signs, normals, face_off, snap,
+        _mvc_kernel(px, fr.cv, fr.faces, fr.topo.edges, fr.topo.face_edges,
+                    fr.topo.face_edge_signs, fr.normals, fr.face_off, snap,
                     64 * numba.get_num_threads(), out, want_winding, winding)
-        far = _blend_far_rows(px, cv, faces, out)
+        far = _blend_far_rows(px, fr.cv, fr.faces, out)
         if want_winding:
             winding[far] = 0.0  # far outside; solid angles there are rounding
             lost = np.flatnonzero(~np.isfinite(winding))  # none known; libigl's if any
             if len(lost):
-                winding[lost] = winding_numbers(px[lost], cv, faces)
+                winding[lost] = winding_numbers(px[lost], fr.cv, fr.faces)
     return WeightsAndWinding(out, winding)
+
+
+def _coordinates(points, cage_v, cage_f, snap, check, want_winding) -> WeightsAndWinding:
+    """:func:`mvc_and_winding`; the winding numbers are an empty array unless wanted."""
+    fr = _frame(points, cage_v, cage_f, check)
+    return _float64_rows(fr, fr.px, snap, want_winding)
+
+
+def _coordinates32(points, cage_v, cage_f, snap, check) -> Floats:
+    """:func:`mean_value_coordinates` with ``dtype=np.float32``."""
+    fr = _frame(points, cage_v, cage_f, check)
+    with np.errstate(over="ignore"):
+        rows = mvc_float32(fr.px, fr.cv, fr.faces, fr.topo.edges, fr.topo.face_edges,
+                           fr.topo.face_edge_signs, fr.normals, fr.face_off,
+                           64 * numba.get_num_threads())
+    redo = rows.flagged | ~(distance_in_diagonals(fr.px, fr.cv) <= FAR_BLEND[0])
+    index = np.flatnonzero(redo)
+    if len(index):
+        rows.weights[index] = _float64_rows(fr, fr.px[index], snap, False).weights
+    return rows.weights
 
 
 #: far rows blended at a time: the blend's scratch memory stays a few (chunk, k) arrays
