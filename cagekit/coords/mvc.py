@@ -398,12 +398,17 @@ def mean_value_coordinates(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLi
     check : bool, default True
         Validate the cage with :func:`cagekit.cage.check_cage`.
     dtype : {numpy.float64, numpy.float32}, default float64
-        float32 computes the weights in float32 (:mod:`cagekit.coords.mvc32`), about twice
-        as fast, and returns them as float32: each weight within about ``1e-6`` of the
-        float64 weights (an estimate of each row's rounding error sends the rows where
-        float32 cannot promise that, near the plane of a face the point lies outside of,
-        close to an edge seen end on, beyond :data:`FAR_BLEND` ``[0]`` diagonals, to the
-        float64 kernel, rounded afterwards).
+        float32 computes the weights in float32 lanes (:mod:`cagekit.coords.mvc32`) and
+        returns them as float32, each within about ``1e-5`` of the float64 weights (of
+        their size, beyond about 100 diagonals, where weights exceed one). An estimate of
+        each row's rounding error sends the rows where float32 cannot promise that to the
+        float64 kernel, rounded afterwards: points near the plane of a face they lie
+        outside of, within ``max(snap, 1e-5)`` of a face's plane, beyond :data:`FAR_BLEND`
+        ``[0]`` diagonals. So it pays where points lie away from the cage (about twice as
+        fast for points inside a loose cage) and not for a mesh's own vertices in a tight
+        fitted cage, where float32 is off by up to 5e-4 on some rows and half or more go
+        to float64 (0.5-1.3x float64's speed; docs/benchmarks.md, "MVC in float32 on
+        request"). Points whose weights overflow float32 are refused.
 
     Returns
     -------
@@ -421,7 +426,10 @@ def mean_value_coordinates(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLi
     >>> w32.dtype.name, bool(np.abs(w32 - w).max() < 1e-6)
     ('float32', True)
     """
-    dtype = np.dtype(dtype)
+    try:
+        dtype = np.dtype(dtype)
+    except TypeError as error:
+        raise InputError(f"dtype must be float64 or float32, got {dtype!r}") from error
     if dtype == np.float32:
         return _coordinates32(points, cage_v, cage_f, snap, check)
     if dtype != np.float64:
@@ -535,11 +543,17 @@ def _coordinates32(points, cage_v, cage_f, snap, check) -> Floats:
     with np.errstate(over="ignore"):
         rows = mvc_float32(fr.px, fr.cv, fr.faces, fr.topo.edges, fr.topo.face_edges,
                            fr.topo.face_edge_signs, fr.normals, fr.face_off,
-                           64 * numba.get_num_threads())
+                           64 * numba.get_num_threads(), snap)
     redo = rows.flagged | ~(distance_in_diagonals(fr.px, fr.cv) <= FAR_BLEND[0])
     index = np.flatnonzero(redo)
     if len(index):
-        rows.weights[index] = _float64_rows(fr, fr.px[index], snap, False).weights
+        with np.errstate(over="ignore"):
+            rows.weights[index] = _float64_rows(fr, fr.px[index], snap, False).weights
+    lost = ~np.isfinite(rows.weights[index]).all(axis=1)
+    if lost.any():
+        raise InputError(f"{int(lost.sum())} points lie so far from the cage (about 1e38 "
+                         "cage diagonals or more) that their coordinates overflow float32; "
+                         "use float64")
     return rows.weights
 
 

@@ -18,10 +18,12 @@ rounding error and the rows that cannot be trusted are left to the float64 kerne
   :data:`FLOAT32_SNAP` of a face's plane (the switch-over zone of float32) and rows whose
   sum is not finite are flagged for float64.
 
-The estimate is conservative by 2-5x: on star cages of 200, 216 and 1,000 faces the rows it
-accepted were at most 7e-6 from the float64 weights (points inside, and 1e-2 to 3e-5
-diagonals from edges and faces), with 1-8% of the points inside flagged
-(docs/benchmarks.md, "MVC in float32 on request").
+On star cages of 200, 216 and 1,000 faces the rows it accepted were at most 7e-6 from the
+float64 weights (points inside, and 1e-2 to 3e-5 diagonals from edges and faces), with
+1-8% of the points inside flagged. A mesh's vertices in its tight fitted cage are another
+matter: float32 is off by up to 5e-4 there (the bundled source chair, 200 faces), and 62%
+of its rows are flagged, so float32 gains nothing there (docs/benchmarks.md, "MVC in
+float32 on request").
 
 :func:`mvc_float32` returns the float32 rows and the flags;
 :func:`cagekit.coords.mvc.mean_value_coordinates` recomputes the flagged rows in float64 and
@@ -235,7 +237,8 @@ class Float32Rows(NamedTuple):
 
 def mvc_float32(points: np.ndarray, cage_v: np.ndarray, faces: np.ndarray, edges: np.ndarray,
                 face_edges: np.ndarray, face_signs: np.ndarray, face_n: np.ndarray,
-                face_off: np.ndarray, n_chunks: int) -> Float32Rows:
+                face_off: np.ndarray, n_chunks: int,
+                snap: float = FLOAT32_SNAP) -> Float32Rows:
     """float32 MVC of points in the cage's normalised frame, with the rows float32 cannot
     resolve flagged.
 
@@ -254,6 +257,9 @@ def mvc_float32(points: np.ndarray, cage_v: np.ndarray, faces: np.ndarray, edges
         ``face_n . v`` of each face's first vertex.
     n_chunks : int
         Parallel chunks.
+    snap : float, default :data:`FLOAT32_SNAP`
+        Rows of points within this distance of a face's plane are flagged; a smaller value
+        is raised to :data:`FLOAT32_SNAP`.
 
     Returns
     -------
@@ -268,6 +274,6 @@ def mvc_float32(points: np.ndarray, cage_v: np.ndarray, faces: np.ndarray, edges
                       np.ascontiguousarray(cage_v, dtype=f32), np.ascontiguousarray(faces),
                       edges, face_edges, np.ascontiguousarray(face_signs, dtype=f32),
                       np.ascontiguousarray(face_n, dtype=f32),
-                      np.ascontiguousarray(face_off, dtype=f32), f32(FLOAT32_SNAP),
+                      np.ascontiguousarray(face_off, dtype=f32), f32(max(snap, FLOAT32_SNAP)),
                       FLOAT32_TOLERANCE, n_chunks, out, flagged)
     return Float32Rows(out, flagged)

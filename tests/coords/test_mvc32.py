@@ -127,8 +127,33 @@ def test_float32_angle_to_four_units_in_the_last_place():
 
 def test_bad_dtype_is_refused():
     v, f = box_cage()
-    with pytest.raises(InputError, match="float64 or float32"):
-        mean_value_coordinates([[0.0, 0.0, 0.0]], v, f, dtype=np.float16)
+    for dtype in (np.float16, np.int32, "bogus"):
+        with pytest.raises(InputError, match="float64 or float32"):
+            mean_value_coordinates([[0.0, 0.0, 0.0]], v, f, dtype=dtype)
+    w = mean_value_coordinates([[0.1, 0.0, 0.0]], v, f, dtype="float32")
+    assert w.dtype == np.float32
+
+
+def test_a_larger_snap_is_kept():
+    """Points within the caller's ``snap`` of a face get the float64 kernel's rows with that
+    snap (its face limits), not float32's own."""
+    v, f = box_cage()
+    D = diag(v)
+    rng = np.random.default_rng(5)
+    normals = unit_normals(v, f)
+    fi = rng.integers(len(f), size=200)
+    base = np.einsum("ni,nic->nc", rng.dirichlet([1, 1, 1], 200), v[f[fi]])
+    p = base - rng.uniform(3e-5, 5e-4, (200, 1)) * D * normals[fi]
+    w64 = mean_value_coordinates(p, v, f, snap=1e-3)
+    w32 = mean_value_coordinates(p, v, f, snap=1e-3, dtype=np.float32)
+    assert np.array_equal(w32, w64.astype(np.float32))
+
+
+def test_weights_that_overflow_float32_are_refused():
+    v, f = box_cage()
+    with pytest.raises(InputError, match="overflow float32"):
+        mean_value_coordinates([[1e40, 0.0, 0.0]], v, f, dtype=np.float32)
+    assert np.isfinite(mean_value_coordinates([[1e40, 0.0, 0.0]], v, f)).all()
 
 
 def test_float32_empty_points():
