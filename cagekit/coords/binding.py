@@ -269,7 +269,8 @@ def bind(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike, method: str = 
     if winding:
         weights, wn = mvc_and_winding(points, v, faces, check=False)
         return CageBinding(weights, v, faces, method, wn)
-    return CageBinding(mean_value_coordinates(points, v, faces, check=False), v, faces, method)
+    weights = np.asarray(mean_value_coordinates(points, v, faces, check=False), np.float64)
+    return CageBinding(weights, v, faces, method)
 
 
 def warn_outside(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike, *,

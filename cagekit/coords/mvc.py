@@ -29,7 +29,7 @@ from typing import NamedTuple
 
 import numba
 import numpy as np
-from numpy.typing import ArrayLike, DTypeLike
+from numpy.typing import ArrayLike, DTypeLike, NDArray
 
 from cagekit.cage import (
     CageTopology,
@@ -380,7 +380,7 @@ def _mvc_kernel(points, cage_v, faces, edges, face_edges, face_signs, face_n, fa
 
 def mean_value_coordinates(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLike,
                            snap: float = DEFAULT_SNAP, check: bool = True,
-                           dtype: DTypeLike = np.float64) -> Floats:
+                           dtype: DTypeLike = np.float64) -> NDArray[np.floating]:
     """Mean value coordinates of points with respect to a closed triangle cage.
 
     Parameters
@@ -406,9 +406,11 @@ def mean_value_coordinates(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLi
         outside of, within ``max(snap, 1e-5)`` of a face's plane, beyond :data:`FAR_BLEND`
         ``[0]`` diagonals. So it pays where points lie away from the cage (about twice as
         fast for points inside a loose cage) and not for a mesh's own vertices in a tight
-        fitted cage, where float32 is off by up to 5e-4 on some rows and half or more go
-        to float64 (0.5-1.3x float64's speed; docs/benchmarks.md, "MVC in float32 on
-        request"). Points whose weights overflow float32 are refused.
+        fitted cage, where float32 is off by up to 1e-3 on some rows and half or more go
+        to float64 (0.5-1.3x float64's speed), nor outside the cage or with a sliver face,
+        where float32 MVC is wrong outright and every row goes to float64 (about 2x
+        slower); docs/benchmarks.md, "MVC in float32 on request". Points whose weights
+        overflow float32 are refused.
 
     Returns
     -------
@@ -537,7 +539,7 @@ def _coordinates(points, cage_v, cage_f, snap, check, want_winding) -> WeightsAn
     return _float64_rows(fr, fr.px, snap, want_winding)
 
 
-def _coordinates32(points, cage_v, cage_f, snap, check) -> Floats:
+def _coordinates32(points, cage_v, cage_f, snap, check) -> NDArray[np.float32]:
     """:func:`mean_value_coordinates` with ``dtype=np.float32``."""
     fr = _frame(points, cage_v, cage_f, check)
     with np.errstate(over="ignore"):

@@ -11,19 +11,25 @@ rounding error and the rows that cannot be trusted are left to the float64 kerne
 
 - each face's terms are off by about ``eps * max(1 / d) / |det|`` (``eps`` float32's
   machine epsilon, ``d`` the distances to the face's vertices, ``det`` the triple product
-  of Cramer's rule, small near the plane of a face the point lies outside of), the same
-  estimate as the float32 torch layer's;
+  of Cramer's rule, small near the plane of a face the point lies outside of), as the
+  float32 torch layer estimates it (which counts only the faces whose plane's foot point
+  lies outside the triangle, with a threshold of 1e-6);
 - divided by the weight sum, the largest of these over the faces estimates the error of the
   row's normalised weights; rows above :data:`FLOAT32_TOLERANCE`, rows within
   :data:`FLOAT32_SNAP` of a face's plane (the switch-over zone of float32) and rows whose
   sum is not finite are flagged for float64.
 
+The differences from each point to the cage's vertices, and its distances to the faces'
+planes, are taken in float64 and then rounded, so that rounding the points themselves to
+float32 costs nothing (on a 10 x 1 x 0.02 box it would cost 2e-5).
+
 On star cages of 200, 216 and 1,000 faces the rows it accepted were at most 7e-6 from the
 float64 weights (points inside, and 1e-2 to 3e-5 diagonals from edges and faces), with
 1-8% of the points inside flagged. A mesh's vertices in its tight fitted cage are another
-matter: float32 is off by up to 5e-4 there (the bundled source chair, 200 faces), and 62%
-of its rows are flagged, so float32 gains nothing there (docs/benchmarks.md, "MVC in
-float32 on request").
+matter: float32 is off by up to 1e-3 there (the bundled source chair, 200 faces), and 62%
+of its rows are flagged; outside a cage, or in a cage with a sliver face, float32 MVC is
+off by O(1) and every row is flagged. float32 gains nothing in those cases
+(docs/benchmarks.md, "MVC in float32 on request").
 
 :func:`mvc_float32` returns the float32 rows and the flags;
 :func:`cagekit.coords.mvc.mean_value_coordinates` recomputes the flagged rows in float64 and
@@ -38,7 +44,7 @@ import numba
 import numpy as np
 
 from cagekit.coords.fastangle import fit_atan_polynomial
-from cagekit.coords.lanes import ALIGNMENT, cross, load_lanes
+from cagekit.coords.lanes import ALIGNMENT, aligned_empty, cross, load_lanes
 
 __all__ = ["mvc_float32", "Float32Rows", "FLOAT32_TOLERANCE", "FLOAT32_SNAP",
            "ATAN32_COEFFICIENTS"]
@@ -108,15 +114,17 @@ def _mvc_lanes32(P, cage_v, faces, edges, face_edges, face_signs, face_n, face_o
     """Unnormalised MVC of ``_LANES32`` points in float32, and each lane's error factor.
 
     As :func:`cagekit.coords.mvc._mvc_lanes` in its first pass (a point within ``snap`` of a
-    face's plane gets NaN weights), all arrays float32. ``amp`` (L,) receives
+    face's plane gets NaN weights). ``P`` (3, L), ``cage_v``, ``face_n`` and ``face_off``
+    are float64 (differences and plane distances are taken in float64, then rounded);
+    everything else is float32. ``amp`` (L,) receives
     ``max_f max(1 / d) / |det|`` over the faces (module docstring).
     """
     k = cage_v.shape[0]
     for j in range(k):
         for lane in range(_LANES32):
-            ax = cage_v[j, 0] - P[0, lane]
-            ay = cage_v[j, 1] - P[1, lane]
-            az = cage_v[j, 2] - P[2, lane]
+            ax = _F(cage_v[j, 0] - P[0, lane])
+            ay = _F(cage_v[j, 1] - P[1, lane])
+            az = _F(cage_v[j, 2] - P[2, lane])
             inv = _ONE / np.sqrt(ax * ax + ay * ay + az * az)
             inv_d[j, lane] = inv
             U[0, j, lane] = ax * inv
@@ -155,7 +163,7 @@ def _mvc_lanes32(P, cage_v, faces, edges, face_edges, face_signs, face_n, face_o
         s_bc = face_signs[f, 1]
         s_ca = face_signs[f, 2]
         for lane in range(_LANES32):
-            h = P[0, lane] * nx + P[1, lane] * ny + P[2, lane] * nz - off
+            h = _F(P[0, lane] * nx + P[1, lane] * ny + P[2, lane] * nz - off)
             mx = s_ab * G[0, e_ab, lane] + s_bc * G[0, e_bc, lane] + s_ca * G[0, e_ca, lane]
             my = s_ab * G[1, e_ab, lane] + s_bc * G[1, e_bc, lane] + s_ca * G[1, e_ca, lane]
             mz = s_ab * G[2, e_ab, lane] + s_bc * G[2, e_bc, lane] + s_ca * G[2, e_ca, lane]
@@ -199,7 +207,7 @@ def _mvc32_kernel(points, cage_v, faces, edges, face_edges, face_signs, face_n, 
     n_blocks = (n + L - 1) // L
     n_chunks = max(1, min(n_blocks, n_chunks))
     for chunk in numba.prange(n_chunks):
-        P = _aligned_empty32((3, L))
+        P = aligned_empty((3, L))
         U = _aligned_empty32((3, k, L))
         inv_d = _aligned_empty32((k, L))
         G = _aligned_empty32((3, e, L))
@@ -270,10 +278,11 @@ def mvc_float32(points: np.ndarray, cage_v: np.ndarray, faces: np.ndarray, edges
     out = np.empty((n, k), dtype=f32)
     flagged = np.empty(n, dtype=np.bool_)
     if n:
-        _mvc32_kernel(np.ascontiguousarray(points, dtype=f32),
-                      np.ascontiguousarray(cage_v, dtype=f32), np.ascontiguousarray(faces),
+        _mvc32_kernel(np.ascontiguousarray(points, dtype=np.float64),
+                      np.ascontiguousarray(cage_v, dtype=np.float64),
+                      np.ascontiguousarray(faces),
                       edges, face_edges, np.ascontiguousarray(face_signs, dtype=f32),
-                      np.ascontiguousarray(face_n, dtype=f32),
-                      np.ascontiguousarray(face_off, dtype=f32), f32(max(snap, FLOAT32_SNAP)),
+                      np.ascontiguousarray(face_n),
+                      np.ascontiguousarray(face_off), f32(max(snap, FLOAT32_SNAP)),
                       FLOAT32_TOLERANCE, n_chunks, out, flagged)
     return Float32Rows(out, flagged)

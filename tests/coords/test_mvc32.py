@@ -57,6 +57,29 @@ def test_float32_matches_float64_inside_and_out(name):
     assert np.abs(w32.astype(np.float64).sum(axis=1) - 1).max() <= 1e-6
 
 
+@pytest.mark.parametrize("half_extent", [(10.0, 1.0, 0.02), (3.0, 1.0, 0.01)])
+def test_float32_on_flat_and_long_cages(half_extent):
+    """Points near the vertices and edges of flat, long boxes, where rounding the points to
+    float32 before taking differences would cost 2e-5 (a review's case)."""
+    v, f = box_cage(3, half_extent=half_extent)
+    rng = np.random.default_rng(7)
+    p = np.vstack([_near(v, f, rng, 4000, e) for e in (-4, -3, -2)]
+                  + [[[-9.996893252313807, 0.021454371649810566, 0.013162028442229436]]])
+    p = p[np.all(np.abs(p) <= half_extent, axis=1)]  # inside
+    w64, w32 = _both(p, v, f)
+    assert np.abs(w32.astype(np.float64) - w64).max() <= BOUND
+
+
+def test_float32_lanes_are_used_inside_a_loose_cage():
+    """Inside a box most rows come from the float32 lanes (not float64's rows rounded)."""
+    v, f = box_cage()
+    p = np.random.default_rng(8).uniform(-0.9, 0.9, (2000, 3))
+    w64, w32 = _both(p, v, f)
+    from_float32 = np.any(w32 != w64.astype(np.float32), axis=1)
+    assert from_float32.mean() > 0.5
+    assert np.abs(w32.astype(np.float64) - w64).max() <= 1e-6
+
+
 @given(seed=st.integers(0, 2**32 - 1), exponent=st.floats(-8, -1),
        cage=st.sampled_from(sorted(CAGES)))
 def test_float32_near_the_cage_property(seed, exponent, cage):
