@@ -404,8 +404,8 @@ def mean_value_coordinates(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLi
         each row's rounding error sends the rows where float32 cannot promise that to the
         float64 kernel, rounded afterwards: points near the plane of a face they lie
         outside of, within ``max(snap, 1e-5)`` of a face's plane, beyond :data:`FAR_BLEND`
-        ``[0]`` diagonals. So it pays where points lie away from the cage (about twice as
-        fast for points inside a loose cage) and not for a mesh's own vertices in a tight
+        ``[0]`` diagonals. So it pays where points lie away from the cage (1.6-2.4x as fast
+        for points inside a loose cage) and not for a mesh's own vertices in a tight
         fitted cage, where float32 is off by up to 1e-3 on some rows and half or more go
         to float64 (0.5-1.3x float64's speed), nor outside the cage or with a sliver face,
         where float32 MVC is wrong outright and every row goes to float64 (about 2x
