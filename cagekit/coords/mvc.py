@@ -429,13 +429,14 @@ def mean_value_coordinates(points: ArrayLike, cage_v: ArrayLike, cage_f: ArrayLi
     ('float32', True)
     """
     try:
-        dtype = np.dtype(dtype)
-    except TypeError as error:
-        raise InputError(f"dtype must be float64 or float32, got {dtype!r}") from error
-    if dtype == np.float32:
+        kind = np.dtype(dtype)
+    except TypeError:
+        kind = None
+    if kind == np.float32:
         return _coordinates32(points, cage_v, cage_f, snap, check)
-    if dtype != np.float64:
-        raise InputError(f"dtype must be float64 or float32, got {dtype}")
+    if kind != np.float64:
+        shown = repr(dtype) if kind is None else str(kind)
+        raise InputError(f"dtype must be float64 or float32, got {shown}")
     return _coordinates(points, cage_v, cage_f, snap, check, False).weights
 
 
@@ -542,14 +543,13 @@ def _coordinates(points, cage_v, cage_f, snap, check, want_winding) -> WeightsAn
 def _coordinates32(points, cage_v, cage_f, snap, check) -> NDArray[np.float32]:
     """:func:`mean_value_coordinates` with ``dtype=np.float32``."""
     fr = _frame(points, cage_v, cage_f, check)
-    with np.errstate(over="ignore"):
-        rows = mvc_float32(fr.px, fr.cv, fr.faces, fr.topo.edges, fr.topo.face_edges,
-                           fr.topo.face_edge_signs, fr.normals, fr.face_off,
-                           64 * numba.get_num_threads(), snap)
+    rows = mvc_float32(fr.px, fr.cv, fr.faces, fr.topo.edges, fr.topo.face_edges,
+                       fr.topo.face_edge_signs, fr.normals, fr.face_off,
+                       64 * numba.get_num_threads(), snap)
     redo = rows.flagged | ~(distance_in_diagonals(fr.px, fr.cv) <= FAR_BLEND[0])
     index = np.flatnonzero(redo)
     if len(index):
-        with np.errstate(over="ignore"):
+        with np.errstate(over="ignore"):  # weights beyond float32's range: refused below
             rows.weights[index] = _float64_rows(fr, fr.px[index], snap, False).weights
     lost = ~np.isfinite(rows.weights[index]).all(axis=1)
     if lost.any():
