@@ -224,6 +224,35 @@ def test_dcotlap_ignores_zero_area_faces():
         cotangent_laplacian(V, np.vstack([F, [[0, 1, 4]]]))
 
 
+@pytest.mark.parametrize("height", [1e-9, 1e-12, 1e-16])
+def test_dcotlap_ignores_numerically_collinear_faces(height):
+    # vertex 4 lies `height` off the edge (0, 1): the face (0, 1, 4) has a positive area
+    # by its cross product, but libigl's cotangents of it are not finite (a real sofa of
+    # sweethome3d-furniture has such a face; its deformations could not be measured)
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [0.3, -height, 0]])
+    F = np.array([[0, 1, 2], [1, 3, 2]])
+    sliver = np.vstack([F, [[0, 4, 1]]])
+    out = V.copy()
+    out[0, 2] = 1.0
+    assert dcotlap(V, sliver, out) == dcotlap(V, F, out)
+    with pytest.raises(InputError, match="not finite"):  # direct callers: still strict
+        cotangent_laplacian(V, sliver)
+
+
+def test_dcotlap_keeps_a_thin_face_libigl_can_measure():
+    # 1e-6 off the edge: cotangents near 1e5, finite and kept
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [0.3, -1e-6, 0]])
+    F = np.array([[0, 1, 2], [1, 3, 2]])
+    thin = np.vstack([F, [[0, 4, 1]]])
+    out = V.copy()
+    out[4, 2] = 1e-3
+    assert np.abs(cotangent_laplacian(V, thin).data).max() > 1e4
+    assert dcotlap(V, thin, out) == pytest.approx(
+        np.mean(np.square(cotangent_laplacian(V, thin) @ (out - V))), rel=1e-12)
+    assert dcotlap(V, thin, out) > 0
+    assert dcotlap(V, F, out) == 0  # vertex 4 is in no face of F
+
+
 def test_evaluate_ignores_a_zero_area_face():
     # a duplicated vertex (common in real meshes) and a face on it: zero area
     V, F = ellipsoid()

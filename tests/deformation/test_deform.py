@@ -217,6 +217,21 @@ def test_result_fields_and_frames(blob, blob_cage):
     assert set(result.losses) == {"chamfer", "p2f", "normal", "cage", "detail"}
 
 
+def test_a_numerically_collinear_face_keeps_the_detail_term(blob, blob_cage):
+    # a sliver on an edge, as real meshes have: its cotangents are not finite in libigl;
+    # the detail term (and dCotLap) drop it instead of the whole term (or the result)
+    V, F = blob
+    a, b = F[0, 0], F[0, 1]
+    V2 = np.vstack([V, 0.3 * V[a] + 0.7 * V[b]])
+    F2 = np.vstack([F, [[a, len(V), b]]])
+    target = (V * [1.3, 0.9, 1.1], F)
+    result = cagekit.deform(V2, F2, *target, *blob_cage,
+                            options=cagekit.DeformOptions(max_evaluations=5))
+    assert "detail" in result.losses and np.isfinite(result.losses["detail"])
+    figures = cagekit.evaluate(V2, F2, *target, result.vertices, n_samples=500)
+    assert np.isfinite(figures.dcotlap) and figures.dcotlap > 0
+
+
 def test_initial_cage_sets_where_the_optimiser_starts(blob, blob_cage):
     V, F = blob
     target = (V * [1.3, 0.9, 1.1] * 5.0 + 2.0, F)
