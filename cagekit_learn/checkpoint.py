@@ -101,8 +101,10 @@ def load_checkpoint(path: str | os.PathLike,
     try:
         payload = torch.load(path, map_location=map_location, weights_only=True)
     except Exception as exc:  # noqa: BLE001 - any failure is the file's fault here
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        if first.startswith("Weights only load failed"):  # torch's advice is not for us
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+        # torch's advice is not for us; a bare key or an empty message says nothing
+        if first.startswith("Weights only load failed") or isinstance(
+                exc, (KeyError, EOFError)) or not first:
             first = ("torch's safe loader refused it: not a file torch saved, or one "
                      "holding more than tensors and plain values")
         raise InputError(f"{path}: not a readable checkpoint ({first})"

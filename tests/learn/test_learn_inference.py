@@ -198,6 +198,8 @@ def test_deform_model_command(run_dir, pair, tmp_path, capsys):
 
 @pytest.mark.parametrize("args, message", [
     (["--model", "{bad}"], "not a readable checkpoint (torch's safe loader refused it"),
+    (["--model", "{text}"], "not a readable checkpoint (torch's safe loader refused it"),
+    (["--model", "{empty}"], "not a readable checkpoint (torch's safe loader refused it"),
     (["--model", "{missing}"], "no such checkpoint"),
     (["--refine"], "needs --model"),
     (["--model", "{run}", "--method", "scale"], "apply to --method cage only"),
@@ -216,8 +218,12 @@ def test_deform_model_bad_input_exits_2_with_one_line(run_dir, pair, tmp_path, c
     bad.write_bytes(b"\x00junk")
     hollow = tmp_path / "hollow.pt"  # readable, but not what a model needs
     torch.save({"format": 1, "model": {}, "model_config": {"nc": "bogus"}}, hollow)
+    text = tmp_path / "text.pt"  # torch's legacy reader fails on it with a bare KeyError
+    text.write_text("junk\n")
+    empty = tmp_path / "empty.pt"  # an EOFError without a message
+    empty.write_bytes(b"")
     names = {"bad": bad, "missing": tmp_path / "missing.pt", "run": run_dir,
-             "hollow": hollow}
+             "hollow": hollow, "text": text, "empty": empty}
     args = [a.format(**names) for a in args]
     code, _, err = _cli(["deform", str(pair[0]), str(pair[1]), "-o",
                          str(tmp_path / "o.obj"), *args], capsys)
