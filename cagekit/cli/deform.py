@@ -115,7 +115,8 @@ def _load_landmark_pair(src_path, tgt_path):
 @allow_outside_option
 @click.option("--faces", default=200, show_default=True,
               type=click.IntRange(min=MIN_FACES, max=MAX_FACES),
-              help="Face budget of the fitted cage (without --cage).")
+              help="Face budget of the fitted cage (without --cage; with --model, of "
+                   "the cage fitted where the predicted one cannot be used).")
 @click.option("--save-cage", type=click.Path(dir_okay=False), default=None,
               help="Write the source cage here and the deformed cage beside it "
                    "(name + '_deformed').")
@@ -198,6 +199,10 @@ def deform(ctx: click.Context, source: str, target: str, out: str, method: str,
                                "trained with (cagekit train --coords)")
     if allow_outside and cage_path is None:
         raise click.UsageError("--allow-outside applies to a given --cage")
+    if ctx.get_parameter_source("faces") != click.core.ParameterSource.DEFAULT and (
+            cage_path or method != "cage"):
+        raise click.UsageError("--faces sets the fitted cage's budget: it does not apply "
+                               "to a given --cage or to --method scale")
     if model_path and target_kind != "full":
         raise click.UsageError("--target-kind partial applies to the per-pair optimisation "
                                "only, not to --model")

@@ -171,6 +171,10 @@ def test_deform_refuses_a_cage_in_other_units_with_the_hint(pair, tmp_path):
     assert not out.exists()
     assert_bad_input(cagekit("deform", source, target, "-o", out, "--allow-outside"),
                      "--allow-outside applies to a given --cage")
+    for extra in (["--cage", cage_file], ["--method", "scale"]):
+        assert_bad_input(cagekit("deform", source, target, "-o", out, "--faces", "80", *extra),
+                         "--faces sets the fitted cage's budget: it does not apply")
+    assert not out.exists()
 
 
 def test_deform_suggests_o_for_an_output_given_as_a_positional(pair, tmp_path):
