@@ -156,7 +156,8 @@ def surface_laplacian(V: ArrayLike, F: ArrayLike) -> scipy.sparse.csr_matrix:
     F = F[face_areas(V, F) > 0.0]  # zero-area faces have undefined cotangents
     if len(F):
         with np.errstate(divide="ignore", invalid="ignore"):
-            F = F[np.isfinite(igl.cotmatrix_entries(V, F)).all(axis=1)]
+            cotangents = np.asarray(igl.cotmatrix_entries(V, F), dtype=np.float64)
+        F = F[np.isfinite(cotangents).all(axis=1)]
     if len(F) == 0:
         raise InputError("the cotangent Laplacian needs faces of positive area; all the "
                          "faces have zero area")
