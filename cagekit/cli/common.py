@@ -480,8 +480,8 @@ def shape_writer(out: str, has_faces: bool,
     """The :mod:`cagekit.io` function that writes ``out``, checked before any work.
 
     A mesh goes to ``save_mesh`` when the extension is a mesh format, else to
-    ``save_points`` (its vertices only) when it is a point-cloud format (``.xyz``,
-    ``.npy``...); a point cloud goes to ``save_points``. Anything else is an InputError.
+    ``save_points`` (its vertices only, with a warning) when it is a point-cloud format
+    (``.xyz``, ``.npy``...); a point cloud goes to ``save_points``. Anything else is an InputError.
     With ``source`` (the mesh file whose vertices the result moves), a mesh goes to
     :func:`cagekit.io.save_deformed`, which keeps the source's UVs, materials, groups,
     colours and normals where the output's format can. Returns ``writer(path, V, F)``.
@@ -496,11 +496,27 @@ def shape_writer(out: str, has_faces: bool,
             return lambda path, V, F: io.save_deformed(path, V, F, source)
         return io.save_mesh
     if ext in point_exts:
+        if has_faces:
+            return lambda path, V, F: _save_vertices_of_mesh(path, V, ext)
         return lambda path, V, F: io.save_points(path, V)
     allowed = (mesh_exts | point_exts) if has_faces else point_exts
     kind = "a mesh" if has_faces else "a point cloud"
     raise InputError(f"cannot write {kind} as {ext or '(no extension)'!r}; use one of "
                      f"{', '.join(sorted(allowed))}", out)
+
+
+def _save_vertices_of_mesh(path: str, V: ArrayLike, ext: str) -> None:
+    """A mesh's vertices written to a point-cloud format, saying that its faces are not."""
+    import warnings
+
+    from cagekit import io
+    from cagekit.errors import MeshFileWarning
+
+    warnings.warn(MeshFileWarning(
+        f"{path}: {ext[1:].upper()} is a point-cloud format: the mesh's vertices are "
+        "written, its faces (and UVs, materials, groups) are not; write .obj, .ply or "
+        ".off to keep them"), stacklevel=2)
+    io.save_points(path, V)
 
 
 def bind_with_progress(points: Vertices, cage_v: Vertices, cage_f: Faces,

@@ -118,8 +118,14 @@ def test_apply_point_cloud_and_vertex_only_deformed_cage(tmp_path):
     assert np.allclose(P, load_obj(mesh_out)[0][::7], rtol=0, atol=1e-12)
     # a mesh written to a point-cloud format keeps its (deformed) vertices only
     npy_out = tmp_path / "mesh_vertices.npy"
-    assert cagekit("apply", SHAPE, CAGE, DEFORMED, "-o", npy_out).returncode == 0
+    result = cagekit("apply", SHAPE, CAGE, DEFORMED, "-o", npy_out)
+    assert result.returncode == 0
     assert np.array_equal(np.load(npy_out), load_obj(mesh_out)[0])
+    # ... and says that its faces are not written (a point cloud's output says nothing)
+    assert "NPY is a point-cloud format: the mesh's vertices are written, its faces" in (
+        result.stderr)
+    assert "point-cloud format" not in cagekit("apply", cloud, CAGE, moved, "-o",
+                                               tmp_path / "again.xyz").stderr
 
 
 def test_apply_warns_when_cage_does_not_enclose(tmp_path):
