@@ -251,6 +251,7 @@ def render_meshes(
     size: tuple[int, int] = (480, 480),
     up: str = "y",
     same_scale: bool = False,
+    frame_cages: bool = True,
 ) -> str:
     """Draw shapes side by side and write the picture as a PNG file (atomically).
 
@@ -280,6 +281,10 @@ def render_meshes(
     same_scale : bool
         If True, all panels share one frame (compare shapes in the same units); otherwise
         each panel is fitted to its own shape and cage.
+    frame_cages : bool, default True
+        Whether the cages count in the frames; False frames the shapes alone and cuts the
+        cages at the panels' edges (a cage much larger than its shape, as a learned
+        model's, would otherwise shrink the shape to a corner of its panel).
 
     Returns
     -------
@@ -333,7 +338,8 @@ def render_meshes(
     cage_arrays = [None if c is None else (_to_display(c[0] / u, up), c[1])
                    for c, u in zip(cage_arrays, units)]
     panel_points = [
-        [V] + ([] if c is None else [c[0]]) for (V, _), c in zip(shapes, cage_arrays)
+        [V] + ([] if c is None or not frame_cages else [c[0]])
+        for (V, _), c in zip(shapes, cage_arrays)
     ]
     if same_scale:
         common = _cube_limits([p for pts in panel_points for p in pts])

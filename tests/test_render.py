@@ -75,6 +75,24 @@ def test_cage_wireframe_changes_the_image(tmp_path):
     assert ((plain[..., 0] > 0.7) & (plain[..., 2] < 0.35)).sum() == 0
 
 
+def test_frame_cages_false_frames_the_shape_and_cuts_a_loose_cage(tmp_path):
+    shape, loose = octahedron(), octahedron(4.0)
+    render_meshes([shape], tmp_path / "all.png", cages=[loose], size=(160, 160))
+    render_meshes([shape], tmp_path / "shape.png", cages=[loose], size=(160, 160),
+                  frame_cages=False)
+    render_meshes([shape], tmp_path / "plain.png", size=(160, 160))
+
+    def blueish(img):
+        return int((img[..., 2] > img[..., 0] + 0.05).sum())
+
+    framed, cut, plain = (image(tmp_path / f"{n}.png") for n in ("all", "shape", "plain"))
+    # framed on the shape, it fills its panel as without the cage (not a 16th of it)
+    assert blueish(cut) > 8 * blueish(framed)
+    assert blueish(cut) > 0.8 * blueish(plain)
+    # the cage is still drawn, cut at the panel's edges
+    assert ((cut[..., 0] > 0.7) & (cut[..., 2] < 0.35)).sum() > 50
+
+
 def test_shading_shows_faces(tmp_path):
     """Faces at different angles to the light get different shades."""
     render_meshes([octahedron()], tmp_path / "o.png", size=(160, 160))

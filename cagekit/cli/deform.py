@@ -337,6 +337,21 @@ def _checked_figures(src, tgt, result, source, out):
                          "from the rest?)", source) from None
 
 
+#: a cage whose box diagonal exceeds its source's this many times is framed out of the
+#: preview (a learned model's predicted cage is about 3x; a fitted one 1.05-1.3x)
+LOOSE_CAGE = 1.5
+
+
+def _loose(cage_v, V) -> bool:
+    """Whether the cage's bounding box is over :data:`LOOSE_CAGE` times its shape's."""
+    import numpy as np
+
+    def diagonal(X):
+        return float(np.linalg.norm(np.ptp(np.asarray(X, dtype=np.float64), axis=0)))
+
+    return diagonal(cage_v) > LOOSE_CAGE * diagonal(V)
+
+
 def _report(src, tgt, result, figures, outputs, source, target, up, as_json):
     """Write the cages and the preview, then print the figures (a line or JSON)."""
     from cagekit import io
@@ -360,7 +375,8 @@ def _report(src, tgt, result, figures, outputs, source, target, up, as_json):
                    (result.deformed_cage_v, result.cage_f) if has_cage else None],
             titles=[f"source: {os.path.basename(source)}",
                     f"target: {os.path.basename(target)}", f"result ({method})"],
-            caption=caption, up=up)
+            caption=caption, up=up,
+            frame_cages=not (has_cage and _loose(result.cage_v, src[0])))
     if as_json:
         emit_json({"source": source, "target": target, "output": outputs["out"],
                    "method": method,

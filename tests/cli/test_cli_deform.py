@@ -192,3 +192,16 @@ def test_deform_names_the_argument_of_a_bad_file(pair, tmp_path):
     folder, source, target = pair
     result = cagekit("deform", source, tmp_path / "missing.obj", "-o", tmp_path / "out.obj")
     assert_bad_input(result, "TARGET (2nd argument) ", "missing.obj: ")
+
+
+def test_the_preview_frames_shapes_alone_only_around_a_loose_cage():
+    # a learned model's cage is about 3x its source: the preview frames the shapes alone
+    import cagekit
+    from cagekit.cli.deform import LOOSE_CAGE, _loose
+
+    V, F = bumpy_blob(subdivisions=2)
+    fitted = cagekit.fit_cage(V, F, faces=80).vertices
+    assert not _loose(fitted, V)
+    centre = V.mean(axis=0)
+    assert _loose(centre + 3.0 * (fitted - centre), V)
+    assert not _loose(centre + 0.9 * LOOSE_CAGE * (V - centre), V)
