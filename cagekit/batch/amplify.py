@@ -674,6 +674,14 @@ def amplify(collection: str, out_dir: str, *, variations: int | None = None,
     return rows
 
 
+def _load_variation(path: str) -> tuple[np.ndarray, np.ndarray]:
+    """A variation this batch wrote: a copy of its source's file, so what that file
+    lacks (faces of two vertices, say) was said when the source was read."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", MeshFileWarning)
+        return load_mesh(path)
+
+
 #: the sub-folders a batch writes meshes into
 _SUBFOLDERS = ("variations", "rejected", "cages")
 
@@ -1155,7 +1163,7 @@ def contact_sheet(rows: Sequence[dict[str, Any]], items: Sequence[Item], folder:
         if sub is None or not os.path.exists(file):
             continue
         tiles.append(Tile(load_shape_of(item.source.location),
-                          load_shape_of(item.target.location), load_mesh(file),
+                          load_shape_of(item.target.location), _load_variation(file),
                           pair_title(short[row["source"]], short[row["target"]],
                                      width=_SHEET_TITLE_CHARS),
                           _decisive_figures(row), row["status"], row.get("reason", ""),

@@ -264,11 +264,13 @@ def _report_native_crashes() -> None:
 
 @contextlib.contextmanager
 def _one_line_warnings(prog: str, debug: bool):
-    """Show every warning as one line, ``<command>: warning: <message>``."""
+    """Show every warning as one line, ``<command>: warning: <message>``, each line once
+    (a file read twice, for the work and for a picture, says what it drops once)."""
     import warnings
 
     from cagekit.errors import CagekitWarning
 
+    shown: set[str] = set()
     with warnings.catch_warnings():
         if not debug:
             def show(message, category, filename, lineno, file=None, line=None):
@@ -276,6 +278,9 @@ def _one_line_warnings(prog: str, debug: bool):
                 if not issubclass(category, CagekitWarning):
                     text = f"{text} ({_package_of(filename)} {category.__name__})"
                 where = _CURRENT.get("command", prog)
+                if f"{where}: {text}" in shown:
+                    return
+                shown.add(f"{where}: {text}")
                 click.echo(f"{where}: warning: {text}", err=True)
 
             warnings.showwarning = show

@@ -304,3 +304,22 @@ def test_what_a_source_loses_in_its_variations_is_said_once_a_source(tmp_path):
     lost = sorted(str(w.message) for w in caught if "not kept" in str(w.message))
     assert lost == [f"UVs, normals and bones of {collection / name}.pmd are not kept in OBJ; "
                     "cagekit writes no PMD" for name in "abc"]
+
+
+def test_the_contact_sheet_does_not_warn_again_about_its_own_variations(tmp_path):
+    """A source with faces of two vertices: its variations copy its file, and reading them
+    for the contact sheet would say it again, naming the output."""
+    collection = tmp_path / "shapes"
+    collection.mkdir()
+    octa = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
+    faces = "f 1 3 5\nf 3 2 5\nf 2 4 5\nf 4 1 5\nf 3 1 6\nf 2 3 6\nf 4 2 6\nf 1 4 6\n"
+    for name, scale in (("a", [1, 1, 1]), ("b", [1.5, 1, 1]), ("c", [1, 0.7, 1])):
+        verts = "".join(f"v {x:.6f} {y:.6f} {z:.6f}\n" for x, y, z in octa * scale)
+        (collection / f"{name}.obj").write_text("g seat\n" + verts + faces + "f 1 2\n")
+    with pytest.warns(MeshFileWarning) as caught:
+        rows = amplify(str(collection), str(tmp_path / "out"), pairs="all", method="scale",
+                       workers=1, max_cd=np.inf, contact_sheet_path=str(tmp_path / "s.png"))
+    assert len(rows) == 6 and {r["status"] for r in rows} == {"ok"}
+    dropped = [str(w.message) for w in caught if "fewer than 3 vertices" in str(w.message)]
+    assert dropped and all(str(collection) in m for m in dropped)
+    assert not any("variations" in m for m in dropped)

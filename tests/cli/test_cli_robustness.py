@@ -267,6 +267,18 @@ def test_a_foreign_warning_is_one_line_too():
         "demo: warning: first line second line (<string> UserWarning)"]
 
 
+def test_the_same_warning_from_two_places_is_one_line():
+    """A file read twice in one command (for the work, then for a picture) says once what
+    it drops; another message still shows."""
+    result = run_command_doing(  # three places: Python's own registry would show all
+        "[warnings.warn_explicit(m, UserWarning, 'io.py', n) for n, m in "
+        "enumerate(('a.obj: dropped 1', 'b.obj: dropped 2', 'a.obj: dropped 1'))]")
+    assert result.returncode == 0, result.stderr
+    assert result.stderr.strip().splitlines() == [
+        "demo: warning: a.obj: dropped 1 (io UserWarning)",
+        "demo: warning: b.obj: dropped 2 (io UserWarning)"]
+
+
 @pytest.mark.parametrize("signum, status, line", [(signal.SIGINT, 130, "interrupted"),
                                                   (signal.SIGTERM, 143, "terminated")])
 def test_a_signal_prints_one_line_and_leaves_no_partial_output(tmp_path, signum, status,
