@@ -12,9 +12,10 @@ The two surfaces are sampled with independent streams spawned from one ``seed``,
 measures the distance between surfaces, not vertex correspondence: identical shapes give a
 small positive CD and ``chamfer(a, b)`` equals ``chamfer(b, a)`` only in distribution. A
 point cloud is not resampled (a seeded subset when it has more than ``n`` points). dCotLap
-is invariant to translating ``V_out``, not to rotating or scaling it. Duplicate and
-zero-area faces are removed before ``L`` is built (a vertex only on such faces gets an empty
-row, still counted in ``n``); a source without faces of positive area raises ``InputError``.
+is invariant to translating ``V_out``, not to rotating or scaling it. Duplicate faces,
+zero-area faces and slivers are removed before ``L`` is built
+(:func:`cagekit.geometry.surface_laplacian`; a vertex only on such faces gets an empty row,
+still counted in ``n``); a source without other faces raises ``InputError``.
 
 The structure figures (docs/architecture.md, "Metrics") see what CD and dCotLap do not: a chair leg
 bent, a seat warped, a symmetric chair made lopsided. :func:`part_nonaffinity` fits an
@@ -218,8 +219,9 @@ def dcotlap(V_src: ArrayLike, F_src: ArrayLike, V_out: ArrayLike) -> float:
 
     ``mean over all n x 3 entries of (L (V_out - V_src))^2``, ``L`` the cotangent
     Laplacian of ``(V_src, F_src)`` after duplicate faces
-    (:func:`cagekit.geometry.remove_duplicate_faces`) and faces of zero area are removed
-    (a zero-area face has undefined cotangents). Both vertex sets must already be in the
+    (:func:`cagekit.geometry.remove_duplicate_faces`), faces of zero area and slivers are
+    removed (:func:`cagekit.geometry.surface_laplacian`: their cotangents are undefined or
+    rounding noise). Both vertex sets must already be in the
     frame the caller wants (:func:`evaluate` uses the normalised frames).
 
     Parameters

@@ -265,7 +265,7 @@ def _part_term(Vs_n, Fs, W_vertices):
 
 def _detail_term(Vs_n, Fs, W_vertices):
     """The detail term's quadratic form, or None for a point cloud or a mesh whose
-    cotangent Laplacian is undefined (no faces of positive area, non-finite weights)."""
+    cotangent Laplacian is undefined (every face of zero area or a sliver)."""
 
     if not len(Fs):
         return None
