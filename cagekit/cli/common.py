@@ -480,6 +480,14 @@ def check_writable(out: str | os.PathLike) -> None:
                          "permission)", out)
 
 
+def given(ctx: click.Context, name: str) -> bool:
+    """Whether option ``name`` was given (on the command line or in the environment), not
+    left at its default."""
+    source = ctx.get_parameter_source(name)
+    return source not in (click.core.ParameterSource.DEFAULT,
+                          click.core.ParameterSource.DEFAULT_MAP)
+
+
 def shape_writer(out: str, has_faces: bool,
                  source: str | None = None) -> Callable[[str, ArrayLike, ArrayLike], None]:
     """The :mod:`cagekit.io` function that writes ``out``, checked before any work.

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import os
+from typing import TYPE_CHECKING
 
 import click
 
@@ -17,6 +18,7 @@ from cagekit.cli.common import (
     check_outside,
     debug_option,
     emit_json,
+    given,
     json_option,
     preview_up_option,
     progress_bar,
@@ -25,6 +27,9 @@ from cagekit.cli.common import (
     start_command,
 )
 from cagekit.errors import InputError
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
 
 
 def _parse_weights(ctx, param, values):
@@ -199,10 +204,6 @@ def deform(ctx: click.Context, source: str, target: str, out: str, method: str,
                                "trained with (cagekit train --coords)")
     if allow_outside and cage_path is None:
         raise click.UsageError("--allow-outside applies to a given --cage")
-    if ctx.get_parameter_source("faces") != click.core.ParameterSource.DEFAULT and (
-            cage_path or method != "cage"):
-        raise click.UsageError("--faces sets the fitted cage's budget: it does not apply "
-                               "to a given --cage or to --method scale")
     if model_path and target_kind != "full":
         raise click.UsageError("--target-kind partial applies to the per-pair optimisation "
                                "only, not to --model")
@@ -244,13 +245,16 @@ def _check_options(ctx, source, target, out, method, cage_path, save_cage, symme
                              or symmetry != "none" or model_path):
         raise click.UsageError("--cage, --save-cage, --landmarks, --weight, --symmetry and "
                                "--model apply to --method cage only")
+    if given(ctx, "faces") and (cage_path or method != "cage"):
+        raise click.UsageError("--faces sets the fitted cage's budget: it does not apply "
+                               "to a given --cage or to --method scale or nricp")
     if refine and not model_path:
         raise click.UsageError("--refine refines a prediction: it needs --model")
     if model_path and (cage_path or landmarks):
         raise click.UsageError("--model predicts the cage: --cage and --landmarks do not "
                                "apply")
     tuned = (weights or symmetry != "none"
-             or ctx.get_parameter_source("reference") != click.core.ParameterSource.DEFAULT)
+             or given(ctx, "reference"))
     if model_path and tuned and not refine:
         raise click.UsageError("--weight, --symmetry and --reference tune the per-pair "
                                "optimisation: with --model they need --refine")
@@ -342,12 +346,13 @@ def _checked_figures(src, tgt, result, source, out):
 LOOSE_CAGE = 1.5
 
 
-def _loose(cage_v, V) -> bool:
-    """Whether the cage's bounding box is over :data:`LOOSE_CAGE` times its shape's."""
-    import numpy as np
+def _loose(cage_v: ArrayLike, V: ArrayLike) -> bool:
+    """Whether the cage's bounding-box diagonal is over :data:`LOOSE_CAGE` times its
+    shape's (``(k, 3)`` and ``(n, 3)`` float arrays)."""
+    from cagekit.geometry.frame import bounding_box, bounding_box_diagonal
 
-    def diagonal(X):
-        return float(np.linalg.norm(np.ptp(np.asarray(X, dtype=np.float64), axis=0)))
+    def diagonal(X: ArrayLike) -> float:
+        return bounding_box_diagonal(bounding_box(X)[1])
 
     return diagonal(cage_v) > LOOSE_CAGE * diagonal(V)
 

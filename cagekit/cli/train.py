@@ -10,6 +10,7 @@ from cagekit.cli.common import (
     FiniteFloatRange,
     debug_option,
     emit_json,
+    given,
     json_option,
     progress_enabled,
     start_command,
@@ -139,9 +140,9 @@ def train(ctx: click.Context, data: str, run_dir: str, epochs: int | None, batch
         raise InputError("holds a checkpoint already: --resume to continue it, or choose "
                          "another folder", run_dir)
     if resume:  # what was not given again stays as the stopped run had it
-        if not _given(ctx, "epochs"):
+        if not given(ctx, "epochs"):
             epochs = None
-        if not _given(ctx, "device"):
+        if not given(ctx, "device"):
             device = None
     # epochs None (resumed, not given again) keeps the checkpoint's, as train() documents
     config = TrainConfig(
@@ -169,13 +170,6 @@ def train(ctx: click.Context, data: str, run_dir: str, epochs: int | None, batch
         click.echo(f"trained {result.step} steps ({result.pairs_per_second:.1f} pairs/s, "
                    f"{result.skipped} skipped); last loss {loss:.4g}; wrote "
                    f"{os.path.join(run_dir, 'checkpoint.pt')}")
-
-
-def _given(ctx: click.Context, name: str) -> bool:
-    """Whether option ``name`` was given (on the command line or in the environment)."""
-    source = ctx.get_parameter_source(name)
-    return source not in (click.core.ParameterSource.DEFAULT,
-                          click.core.ParameterSource.DEFAULT_MAP)
 
 
 def _setting(config, key: str):
@@ -218,10 +212,10 @@ def _refuse_contradictions(ctx: click.Context, config, source_cage) -> None:
     stored = resume_config(config.run_dir)
     params = {param.name: param for param in ctx.command.params}
     for name, key in _STORED_OPTIONS.items():
-        if not _given(ctx, name):
+        if not given(ctx, name):
             continue  # not given: the checkpoint's is taken, nothing to compare
-        given, kept = _setting(config, key), _setting(stored, key)
-        if given == kept:
+        asked, kept = _setting(config, key), _setting(stored, key)
+        if asked == kept:
             continue
         option = params[name].opts[0]
         if getattr(params[name], "is_flag", False):

@@ -205,3 +205,27 @@ def test_the_preview_frames_shapes_alone_only_around_a_loose_cage():
     centre = V.mean(axis=0)
     assert _loose(centre + 3.0 * (fitted - centre), V)
     assert not _loose(centre + 0.9 * LOOSE_CAGE * (V - centre), V)
+
+
+def test_deform_previews_a_loose_cage_cut_and_a_fitted_one_whole(pair, tmp_path, monkeypatch):
+    from click.testing import CliRunner
+
+    import cagekit
+    import cagekit.render
+    from cagekit.cli import main
+
+    folder, source, target = pair
+    V, F = load_obj(source)
+    fitted = cagekit.fit_cage(V, F, faces=80)
+    centre = V.mean(axis=0)
+    framed = []
+    monkeypatch.setattr(cagekit.render, "render_meshes",
+                        lambda *a, **k: framed.append(k["frame_cages"]))
+    for name, scale in (("fitted", 1.0), ("loose", 3.0)):
+        cage = tmp_path / f"{name}.obj"
+        save_mesh(cage, centre + scale * (fitted.vertices - centre), fitted.faces)
+        result = CliRunner().invoke(main, [
+            "deform", str(source), str(target), "--cage", str(cage), "-o",
+            str(tmp_path / f"{name}_out.obj"), "--preview", str(tmp_path / f"{name}.png")])
+        assert result.exit_code == 0, result.output
+    assert framed == [True, False]

@@ -89,7 +89,7 @@ def test_deform_with_a_cage_that_does_not_enclose_the_source_warns_with_the_shar
     io.save_mesh(small, V * 0.7, F)
     out = tmp_path / "out.obj"
     result = cagekit("deform", SHAPE, os.path.join(ROOT, "data", "example", "chair_target.obj"),
-                     "--cage", small, "-o", out, "--faces", "80")
+                     "--cage", small, "-o", out)
     assert result.returncode == 0, result.stderr
     warning = [line for line in stderr_lines(result) if "warning" in line]
     assert len(warning) == 1, result.stderr
