@@ -675,8 +675,9 @@ def amplify(collection: str, out_dir: str, *, variations: int | None = None,
 
 
 def _load_variation(path: str) -> tuple[np.ndarray, np.ndarray]:
-    """A variation this batch wrote: a copy of its source's file, so what that file
-    lacks (faces of two vertices, say) was said when the source was read."""
+    """A variation this batch wrote, ``(V (n, 3) float64, F (m, 3) int64)``, read with every
+    :class:`~cagekit.errors.MeshFileWarning` silenced: it is a copy of its source's file, so
+    what that file lacks (faces of two vertices, say) was said when the source was read."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", MeshFileWarning)
         return load_mesh(path)
