@@ -68,7 +68,13 @@ from cagekit.io import (
     save_deformed,
     save_mesh,
 )
-from cagekit.io.files import atomic_output, one_line, output_folder, read_text
+from cagekit.io.files import (
+    atomic_output,
+    missing_folders,
+    one_line,
+    output_folder,
+    read_text,
+)
 from cagekit.metrics import evaluate
 from cagekit.typed import Faces, Vertices
 
@@ -646,32 +652,54 @@ def amplify(collection: str, out_dir: str, *, variations: int | None = None,
     shapes = find_shapes(collection, exclude=[out_dir])
     items = _items(plan_pairs(shapes, variations=variations, pairs=pairs,
                               category_by=category_by, seed=seed), shapes)
-    for sub in ("variations", "cages") + (() if drop_rejected else ("rejected",)):
-        with output_folder(os.path.join(out_dir, sub)):  # one line if it cannot be made
-            pass
-    manifest = _Manifest(out_dir)
-    order = [(it.source.name, it.target.name) for it in items]
-    kept, todo = {}, []
-    for key, item in zip(order, items):
-        row = manifest.rows.get(key)
-        if row is not None and _done(row, item, method, seed, coords, out_dir, drop_rejected):
-            kept[key] = row
-        else:
-            todo.append(item)
-    manifest.rows = kept  # rows of other pairs, or of changed inputs, are dropped
-    for row in kept.values():  # a changed filter applies to kept rows too
-        _refile(row, _verdict(row, max_nonaffinity, max_cd, max_crossings), out_dir,
-                drop_rejected)
-    cages = _Cages(out_dir, shapes, manifest)
-    manifest.save(order)
-    runner = _Runner(items, todo, manifest, cages, order, out_dir, method, seed, deformer,
-                     (max_nonaffinity, max_cd, max_crossings), drop_rejected, progress,
-                     coords)
-    runner.run(executor, workers)
+    made = missing_folders(out_dir)
+    try:
+        for sub in ("variations", "cages") + (() if drop_rejected else ("rejected",)):
+            with output_folder(os.path.join(out_dir, sub)):  # one line if it cannot be made
+                pass
+        manifest = _Manifest(out_dir)
+        order = [(it.source.name, it.target.name) for it in items]
+        kept, todo = {}, []
+        for key, item in zip(order, items):
+            row = manifest.rows.get(key)
+            if row is not None and _done(row, item, method, seed, coords, out_dir,
+                                         drop_rejected):
+                kept[key] = row
+            else:
+                todo.append(item)
+        manifest.rows = kept  # rows of other pairs, or of changed inputs, are dropped
+        for row in kept.values():  # a changed filter applies to kept rows too
+            _refile(row, _verdict(row, max_nonaffinity, max_cd, max_crossings), out_dir,
+                    drop_rejected)
+        cages = _Cages(out_dir, shapes, manifest)
+        manifest.save(order)
+        runner = _Runner(items, todo, manifest, cages, order, out_dir, method, seed,
+                         deformer, (max_nonaffinity, max_cd, max_crossings), drop_rejected,
+                         progress, coords)
+        runner.run(executor, workers)
+    except BaseException:
+        _unmake_if_nothing_done(out_dir, made)
+        raise
     rows = [manifest.rows[key] for key in order]
     if contact_sheet_path:
         contact_sheet(rows, items, out_dir, contact_sheet_path)
     return rows
+
+
+def _unmake_if_nothing_done(out_dir: str, made: list[str]) -> None:
+    """After a failed or interrupted run: remove the output folder this run made (``made``,
+    deepest first, from :func:`cagekit.io.files.missing_folders`) when it holds no mesh
+    yet, nothing to resume but a manifest without items; a folder that was there before,
+    or that holds a finished variation or cage, is left as it is."""
+    subfolders = [os.path.join(out_dir, sub) for sub in _SUBFOLDERS]
+    if not made or any(files for folder in subfolders for _, _, files in os.walk(folder)):
+        return
+    for name in ("manifest.json", "manifest.csv"):
+        with contextlib.suppress(FileNotFoundError):
+            os.remove(os.path.join(out_dir, name))
+    for folder in subfolders + made:
+        with contextlib.suppress(OSError):
+            os.rmdir(folder)  # only when empty: a stray file keeps it
 
 
 def _load_variation(path: str) -> tuple[np.ndarray, np.ndarray]:

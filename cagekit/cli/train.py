@@ -154,10 +154,15 @@ def train(ctx: click.Context, data: str, run_dir: str, epochs: int | None, batch
         fixed_source=fixed_source)
     if resume:
         _refuse_contradictions(ctx, config, source_cage)
-    from cagekit.io.files import output_folder
+    from cagekit.io.files import missing_folders, output_folder
 
-    with output_folder(run_dir):  # a run that fails before writing leaves no empty folder
-        result = run(config, resume=resume, progress=progress_enabled())
+    made = missing_folders(run_dir)
+    try:
+        with output_folder(run_dir):  # a run that fails before writing leaves no empty folder
+            result = run(config, resume=resume, progress=progress_enabled())
+    except BaseException:
+        _unmake_if_no_checkpoint(run_dir, made)
+        raise
     figures = {"run_dir": run_dir, "steps": result.step, "epochs": result.epoch,
                "skipped_steps": result.skipped, "losses": result.last_losses,
                "seconds": result.seconds, "pairs_per_second": result.pairs_per_second}
@@ -170,6 +175,18 @@ def train(ctx: click.Context, data: str, run_dir: str, epochs: int | None, batch
         click.echo(f"trained {result.step} steps ({result.pairs_per_second:.1f} pairs/s, "
                    f"{result.skipped} skipped); last loss {loss:.4g}; wrote "
                    f"{os.path.join(run_dir, 'checkpoint.pt')}")
+
+
+def _unmake_if_no_checkpoint(run_dir: str, made: list[str]) -> None:
+    """After a failed or interrupted run: remove the run folder this run made (``made``,
+    deepest first) when it holds no checkpoint (only the log's first rows: nothing to
+    resume); a folder that was there before is left as it is."""
+    import shutil
+
+    from cagekit_learn.checkpoint import CHECKPOINT_NAME
+
+    if made and not os.path.exists(os.path.join(run_dir, CHECKPOINT_NAME)):
+        shutil.rmtree(made[-1], ignore_errors=True)
 
 
 def _setting(config, key: str):

@@ -18,7 +18,8 @@ from collections.abc import Iterator, Sequence
 from cagekit.errors import InputError
 
 __all__ = ["all_or_nothing", "atomic_output", "check_file", "distinct_tails", "extension",
-           "keep_outputs_as_written", "one_line", "output_folder", "read_bytes", "read_text"]
+           "keep_outputs_as_written", "missing_folders", "one_line", "output_folder",
+           "read_bytes", "read_text"]
 
 
 def extension(path: str | os.PathLike) -> str:
@@ -95,6 +96,22 @@ def read_text(path: str | os.PathLike, error: type[InputError] = InputError) -> 
     return read_bytes(path, error).decode("utf-8-sig", errors="replace")
 
 
+def missing_folders(path: str | os.PathLike) -> list[str]:
+    """The folders that making ``path`` would create: it and its missing parents, as
+    absolute paths, deepest first (empty when ``path`` exists).
+
+    Examples
+    --------
+    >>> missing_folders("/")
+    []
+    """
+    missing, probe = [], os.path.abspath(os.fspath(path))
+    while not os.path.lexists(probe):
+        missing.append(probe)
+        probe = os.path.dirname(probe)
+    return missing
+
+
 @contextlib.contextmanager
 def output_folder(path: str | os.PathLike) -> Iterator[str]:
     """Make a folder for a command's outputs; if the block fails, remove what it made.
@@ -124,11 +141,8 @@ def output_folder(path: str | os.PathLike) -> Iterator[str]:
     ...     save_mesh(os.path.join(folder, "a.obj"), V, F)
     """
     target = os.path.abspath(os.fspath(path))
-    missing = []
-    probe = target
-    while not os.path.lexists(probe):
-        missing.append(probe)
-        probe = os.path.dirname(probe)
+    missing = missing_folders(target)
+    probe = os.path.dirname(missing[-1]) if missing else target
     if not os.path.isdir(probe):
         raise InputError(f"cannot make the folder: {probe} is not a folder", path)
     try:

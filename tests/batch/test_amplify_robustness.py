@@ -456,3 +456,35 @@ def test_warnings_issued_in_workers_are_one_line_each(two, tmp_path):
     assert result.returncode == 0, result.stderr
     dropped = [line for line in one_line_messages(result.stderr) if "dropped" in line]
     assert len(dropped) == 1 and "v1.obj" in dropped[0], result.stderr
+
+
+# ------------------------------------------------- an interrupted run that finished nothing
+
+
+def test_an_interrupted_run_that_finished_nothing_leaves_no_folder(flattening, tmp_path,
+                                                                   monkeypatch):
+    collection, _, _ = flattening
+
+    def interrupted(self, executor, workers):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(batch._Runner, "run", interrupted)
+    fresh = tmp_path / "new" / "out"
+    with pytest.raises(KeyboardInterrupt):
+        amplify(str(collection), str(fresh), pairs="all", workers=1, method="scale")
+    assert not (tmp_path / "new").exists()  # nor the parent the run made
+    # a folder that was there before is left as it was, manifest and all
+    (tmp_path / "kept").mkdir()
+    with pytest.raises(KeyboardInterrupt):
+        amplify(str(collection), str(tmp_path / "kept"), pairs="all", workers=1,
+                method="scale")
+    assert (tmp_path / "kept" / "manifest.json").exists()
+
+    def one_cage_then_interrupted(self, executor, workers):
+        (fresh / "cages" / "a-chair.obj").write_text("v 0 0 0\n")  # finished work
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(batch._Runner, "run", one_cage_then_interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        amplify(str(collection), str(fresh), pairs="all", workers=1, method="scale")
+    assert (fresh / "cages" / "a-chair.obj").exists() and (fresh / "manifest.json").exists()

@@ -232,6 +232,26 @@ def test_deform_model_bad_input_exits_2_with_one_line(run_dir, pair, tmp_path, c
     assert not (tmp_path / "o.obj").exists()
 
 
+def test_an_interrupted_train_without_a_checkpoint_leaves_no_run_folder(tmp_path, capsys,
+                                                                         monkeypatch):
+    import cagekit_learn.train as training
+
+    def interrupted(config, resume=False, progress=False):
+        (tmp_path / "runs" / "r" / "log.csv").write_text("step,loss\n")  # its first row
+        if config.max_steps == 2:  # the second case: a checkpoint written first
+            (tmp_path / "runs" / "r" / "checkpoint.pt").write_bytes(b"kept")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(training, "train", interrupted)
+    args = ["train", "synthetic:vases:4", "-o", str(tmp_path / "runs" / "r")]
+    code, _, err = _cli(args, capsys)
+    assert code == 130 and "interrupted" in err
+    assert not (tmp_path / "runs").exists()  # nor the parent the run made
+    code, _, _ = _cli([*args, "--max-steps", "2"], capsys)
+    assert code == 130
+    assert (tmp_path / "runs" / "r" / "checkpoint.pt").read_bytes() == b"kept"
+
+
 def test_train_command_refuses_to_overwrite_a_run_and_bad_data(run_dir, tmp_path, capsys):
     code, _, err = _cli(["train", "synthetic:vases:4", "-o", str(run_dir)], capsys)
     assert code == 2 and "--resume" in err and len(err.strip().splitlines()) == 1
