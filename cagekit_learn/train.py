@@ -985,11 +985,13 @@ class Trainer:
             self.model = DistributedDataParallel(
                 self.net,
                 device_ids=[self.device.index] if self.device.type == "cuda" else None)
-        self.steps_per_epoch = len(shard(self.pairs_of(0), 0, self.world)) // config.batch_size
+        per_rank = len(shard(self.pairs_of(0), 0, self.world))
+        self.steps_per_epoch = per_rank // config.batch_size
         if self.steps_per_epoch < 1:
-            raise InputError(f"{len(collection)} shapes give no full batch of "
-                             f"{config.batch_size} per rank ({self.world} ranks): lower "
-                             "--batch-size")
+            ranks = "" if self.world == 1 else f" on each of {self.world} ranks"
+            lower = f"--batch-size {per_rank} or lower" if per_rank else "more shapes"
+            raise InputError(f"{len(collection)} shapes give {per_rank} pair(s) an epoch"
+                             f"{ranks}, not a full batch of {config.batch_size}: use {lower}")
         self.total_steps = self.steps_per_epoch * int(config.epochs or 0)  # _check: not None
         if config.max_steps is not None:
             self.total_steps = min(self.total_steps, config.max_steps)

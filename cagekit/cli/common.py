@@ -572,7 +572,8 @@ def check_outside(points: Vertices, cage_v: Vertices, cage_f: Faces, *, shape: s
         return warn_outside(points, cage_v, cage_f, shape=shape, cage=cage,
                             refuse_above=1.0 if allow else OUTSIDE_LIMIT)
     except OutsideCageError as exc:
-        raise OutsideCageError(f"{exc.problem}. More than {OUTSIDE_LIMIT:.0%} outside is "
+        stop = " " if exc.problem.endswith("?") else ". "  # "a different origin? More..."
+        raise OutsideCageError(f"{exc.problem}{stop}More than {OUTSIDE_LIMIT:.0%} outside is "
                                "refused; --allow-outside deforms it anyway", exc.path) from None
 
 

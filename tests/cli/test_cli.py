@@ -620,7 +620,8 @@ def test_apply_refuses_a_shape_beside_its_cage_and_says_so(cm_cage):
     result = cagekit("apply", "shape_moved.obj", "cage_cm.obj", "cage_cm.obj", "-o",
                      "out.obj", cwd=cm_cage)
     assert_bad_input(result, "shape_moved.obj is offset from cage_cm.obj by 3",
-                     "cage diagonals: a different origin?")
+                     "cage diagonals: a different origin? More than 50% outside is refused")
+    assert "?." not in result.stderr
 
 
 @pytest.mark.parametrize("args, label", [

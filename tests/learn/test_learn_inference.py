@@ -252,6 +252,15 @@ def test_an_interrupted_train_without_a_checkpoint_leaves_no_run_folder(tmp_path
     assert (tmp_path / "runs" / "r" / "checkpoint.pt").read_bytes() == b"kept"
 
 
+def test_train_says_which_batch_size_a_small_collection_allows(tmp_path, capsys):
+    code, _, err = _cli(["train", "synthetic:vases:3", "-o", str(tmp_path / "r"),
+                         "--points", "256"], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "3 shapes give 3 pair(s) an epoch, not a full batch of 8: use " \
+           "--batch-size 3 or lower" in err
+    assert not (tmp_path / "r").exists()
+
+
 def test_train_command_refuses_to_overwrite_a_run_and_bad_data(run_dir, tmp_path, capsys):
     code, _, err = _cli(["train", "synthetic:vases:4", "-o", str(run_dir)], capsys)
     assert code == 2 and "--resume" in err and len(err.strip().splitlines()) == 1
