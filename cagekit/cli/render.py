@@ -11,6 +11,8 @@ import click
 from cagekit.cli.common import (
     check_output,
     debug_option,
+    emit_json,
+    json_option,
     start_command,
 )
 
@@ -65,11 +67,12 @@ def _parse_size(ctx, param, text: str):
               help="Vertical axis of the shapes.")
 @click.option("--same-scale", is_flag=True,
               help="Draw all panels in one frame (shapes in the same units).")
+@json_option
 @debug_option
 @click.pass_context
 def render(ctx: click.Context, meshes: tuple[str, ...], out: str, cages: tuple[str, ...],
            titles: Sequence[str], caption: str | None, views: list[tuple[float, float]],
-           size: tuple[int, int], up: str, same_scale: bool) -> None:
+           size: tuple[int, int], up: str, same_scale: bool, as_json: bool) -> None:
     """Draw MESH... side by side (and their cages) into a PNG picture.
 
     Meshes are flat-shaded; point clouds are drawn as dots; each --cage is drawn as a
@@ -99,5 +102,9 @@ def render(ctx: click.Context, meshes: tuple[str, ...], out: str, cages: tuple[s
         titles = shortest_unique_names(meshes)  # girl/pose_3.obj, suit/pose_3.obj
     render_meshes(shapes, out, cages=cage_shapes, titles=list(titles), caption=caption,
                   views=views, size=size, up=up, same_scale=same_scale)
+    if as_json:
+        emit_json({"output": out, "panels": len(shapes), "rows": len(views),
+                   "width": size[0] * len(shapes), "height": size[1] * len(views)})
+        return
     rows = f", {len(views)} rows" if len(views) > 1 else ""
     click.echo(f"wrote {out}: {len(shapes)} panel(s){rows}")

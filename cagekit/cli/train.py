@@ -35,14 +35,15 @@ _STORED_OPTIONS = {
 @click.argument("data", metavar="DATA_DIR")
 @click.option("-o", "--output", "run_dir", required=True, type=click.Path(file_okay=False),
               help="Run folder: checkpoint.pt, log.csv (and tensorboard/ when installed).")
-@click.option("--epochs", default=100, show_default=True, type=click.IntRange(min=1))
+@click.option("--epochs", default=100, show_default=True, type=click.IntRange(min=1),
+              help="Passes over the training pairs (--max-steps and --minutes stop sooner).")
 @click.option("--batch-size", default=8, show_default=True, type=click.IntRange(min=1),
               help="Pairs per step (per process under torchrun).")
 @click.option("--lr", default=1e-3, show_default=True,
               type=FiniteFloatRange(min=0, min_open=True, max=MAX_LR),
               help="Adam's learning rate, > 0 and at most 1 (N_c at a tenth of it).")
 @click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), default="auto",
-              show_default=True)
+              show_default=True, help="Where to train (auto: a GPU when torch sees one).")
 @click.option("--resume", is_flag=True,
               help="Continue the run in --output exactly where it stopped, with the "
                    "same number of processes, on the shapes of DATA_DIR. Its own "
@@ -93,7 +94,8 @@ _STORED_OPTIONS = {
               help="Stop after this many steps in all.")
 @click.option("--minutes", default=None, type=FiniteFloatRange(min=0, min_open=True),
               help="Stop (with a checkpoint) after this much training time.")
-@click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0))
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
+              help="Seed of the weights, the pairs' order and the samples.")
 @json_option
 @debug_option
 @click.pass_context

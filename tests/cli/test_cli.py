@@ -298,6 +298,21 @@ def test_render_png(tmp_path, applied):
     img = imread(png)
     assert img.shape[:2] == (180, 400)
     assert img[..., :3].std() > 0.05
+    result = cagekit("render", SHAPE, "-o", tmp_path / "one.png", "--view", "20,-60",
+                     "--view", "90,0", "--size", "100x90", "--json")
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout) == {"output": str(tmp_path / "one.png"), "panels": 1,
+                                         "rows": 2, "width": 100, "height": 180}
+
+
+def test_every_command_has_help_and_json():
+    """As the README says."""
+    from cagekit.cli import main
+
+    for name, command in main.commands.items():
+        options = {o for p in command.params for o in getattr(p, "opts", ())}
+        assert {"--help", "--json"} <= options | {"--help"}, name
+        assert cagekit(name, "--help").returncode == 0, name
 
 
 def test_fit_cage_json_preview_and_cage(tmp_path):
