@@ -152,7 +152,8 @@ def _load_landmark_pair(src_path, tgt_path):
                    "similarities; details keep their proportions under stretch).")
 @click.option("--preview", type=click.Path(dir_okay=False), default=None,
               help="Draw source, target and result side by side (cages as wireframes) "
-                   "into this PNG.")
+                   "into this PNG; a cage over 1.5x its shape's size (a model's) is cut "
+                   "at the panels' edges, so that the shapes fill them.")
 @click.option("--model", "model_path", type=click.Path(), default=None,
               help="A trained model (RUN_DIR or RUN_DIR/checkpoint.pt of `cagekit train`, "
                    "or a shipped model's name: chairs, tables; needs cagekit[learn]): "
