@@ -688,18 +688,26 @@ def amplify(collection: str, out_dir: str, *, variations: int | None = None,
 
 def _unmake_if_nothing_done(out_dir: str, made: list[str]) -> None:
     """After a failed or interrupted run: remove the output folder this run made (``made``,
-    deepest first, from :func:`cagekit.io.files.missing_folders`) when it holds no mesh
-    yet, nothing to resume but a manifest without items; a folder that was there before,
-    or that holds a finished variation or cage, is left as it is."""
-    subfolders = [os.path.join(out_dir, sub) for sub in _SUBFOLDERS]
-    if not made or any(files for folder in subfolders for _, _, files in os.walk(folder)):
+    deepest first, from :func:`cagekit.io.files.missing_folders`) when nothing in it can
+    be resumed: no mesh in its sub-folders and no item in its manifest. A folder that was
+    there before, or that holds finished work, is left as it is; folders are removed only
+    when empty, and a failure here never hides the run's own error."""
+    try:
+        out_dir = os.path.realpath(out_dir)
+        subfolders = [os.path.join(out_dir, sub) for sub in _SUBFOLDERS]
+        if not made or any(files for f in subfolders for _, _, files in os.walk(f)):
+            return
+        manifest = os.path.join(out_dir, "manifest.json")
+        if os.path.exists(manifest) and json.loads(read_text(manifest)).get("items"):
+            return  # failed items, or rejected ones dropped: finished without a mesh
+        for name in ("manifest.json", "manifest.csv"):
+            with contextlib.suppress(OSError):
+                os.remove(os.path.join(out_dir, name))
+        for folder in subfolders + made:
+            with contextlib.suppress(OSError):
+                os.rmdir(folder)  # only when empty: a stray file keeps it
+    except Exception:  # noqa: BLE001 - the run's own error is the one to report
         return
-    for name in ("manifest.json", "manifest.csv"):
-        with contextlib.suppress(FileNotFoundError):
-            os.remove(os.path.join(out_dir, name))
-    for folder in subfolders + made:
-        with contextlib.suppress(OSError):
-            os.rmdir(folder)  # only when empty: a stray file keeps it
 
 
 def _load_variation(path: str) -> tuple[np.ndarray, np.ndarray]:

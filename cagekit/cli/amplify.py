@@ -58,22 +58,20 @@ def _pairs_option(ctx, param, value):
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
               help="Seed of the pairs and of every item.")
 @click.option("--workers", type=click.IntRange(min=1), default=None,
-              show_default="every core",
               help="Local worker processes, never more than the items to do or the cores "
-                   "(a note says so).")
+                   "(a note says so) [default: every core].")
 @click.option("--cluster", default=None, metavar="ADDRESS|local",
               help="Run on a Dask cluster (scheduler address, or 'local' for a local one "
                    "of --workers processes); needs pip install -e '.[cluster]'.")
 @click.option("--max-nonaffinity", type=FiniteFloatRange(min=0.0), default=None,
-              show_default="0.02",
               help="Reject a variation of a multi-part source whose worst part is farther "
-                   "than this from an affine map (fraction of its size).")
-@click.option("--max-cd", type=FiniteFloatRange(min=0.0), default=None, show_default="0.05",
+                   "than this from an affine map (fraction of its size) [default: 0.02].")
+@click.option("--max-cd", type=FiniteFloatRange(min=0.0), default=None,
               help="Reject a variation whose Chamfer distance to its target exceeds this "
-                   "(target's unit frame).")
-@click.option("--max-crossings", type=click.IntRange(min=0), default=None, show_default="0",
+                   "(target's unit frame) [default: 0.05].")
+@click.option("--max-crossings", type=click.IntRange(min=0), default=None,
               help="Reject a variation in which more pairs of parts than this, apart in "
-                   "the source, pass through each other (exact triangle test).")
+                   "the source, pass through each other (exact triangle test) [default: 0].")
 @click.option("--drop-rejected", is_flag=True, help="Do not keep rejected meshes.")
 @click.option("--contact-sheet", "sheet", type=click.Path(dir_okay=False), default=None,
               help="PNG: a grid of the first 24 items (variation, source, target, the "

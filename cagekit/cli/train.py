@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 
 import click
@@ -180,15 +181,29 @@ def train(ctx: click.Context, data: str, run_dir: str, epochs: int | None, batch
 
 
 def _unmake_if_no_checkpoint(run_dir: str, made: list[str]) -> None:
-    """After a failed or interrupted run: remove the run folder this run made (``made``,
-    deepest first) when it holds no checkpoint (only the log's first rows: nothing to
-    resume); a folder that was there before is left as it is."""
+    """After a failed or interrupted run: when it made the run folder (``made``, deepest
+    first, from :func:`cagekit.io.files.missing_folders`) and wrote no checkpoint there
+    (nothing to resume: a run saves one every ``--checkpoint-every`` steps), remove what
+    it wrote (the log, TensorBoard's folder) and the folders it made, each only when then
+    empty. A folder that was there before is left as it is; a failure here never hides the
+    run's own error."""
     import shutil
 
     from cagekit_learn.checkpoint import CHECKPOINT_NAME
+    from cagekit_learn.train import LOG_NAME
 
-    if made and not os.path.exists(os.path.join(run_dir, CHECKPOINT_NAME)):
-        shutil.rmtree(made[-1], ignore_errors=True)
+    run_dir = os.path.realpath(run_dir)
+    if not made or os.path.exists(os.path.join(run_dir, CHECKPOINT_NAME)):
+        return
+    try:
+        with contextlib.suppress(FileNotFoundError):
+            os.remove(os.path.join(run_dir, LOG_NAME))
+        shutil.rmtree(os.path.join(run_dir, "tensorboard"), ignore_errors=True)
+        for folder in made:
+            with contextlib.suppress(OSError):
+                os.rmdir(folder)  # only when empty: another run's files keep it
+    except Exception:  # noqa: BLE001 - the run's own error is the one to report
+        return
 
 
 def _setting(config, key: str):

@@ -98,14 +98,15 @@ def read_text(path: str | os.PathLike, error: type[InputError] = InputError) -> 
 
 def missing_folders(path: str | os.PathLike) -> list[str]:
     """The folders that making ``path`` would create: it and its missing parents, as
-    absolute paths, deepest first (empty when ``path`` exists).
+    absolute paths with links resolved (``link/../out`` as the system reads it), deepest
+    first; empty when ``path`` exists.
 
     Examples
     --------
     >>> missing_folders("/")
     []
     """
-    missing, probe = [], os.path.abspath(os.fspath(path))
+    missing, probe = [], os.path.realpath(os.fspath(path))
     while not os.path.lexists(probe):
         missing.append(probe)
         probe = os.path.dirname(probe)
@@ -140,7 +141,7 @@ def output_folder(path: str | os.PathLike) -> Iterator[str]:
     >>> with output_folder("out/shapes") as folder:  # doctest: +SKIP
     ...     save_mesh(os.path.join(folder, "a.obj"), V, F)
     """
-    target = os.path.abspath(os.fspath(path))
+    target = os.path.realpath(os.fspath(path))  # "link/../out" as the system reads it
     missing = missing_folders(target)
     probe = os.path.dirname(missing[-1]) if missing else target
     if not os.path.isdir(probe):

@@ -492,3 +492,24 @@ def test_an_interrupted_run_that_finished_nothing_leaves_no_folder(flattening, t
     with pytest.raises(KeyboardInterrupt):
         amplify(str(collection), str(fresh), pairs="all", workers=1, method="scale")
     assert (fresh / "cages" / "a-chair.obj").exists() and (fresh / "manifest.json").exists()
+
+    # items finished without a mesh (failed, or rejected and dropped) are work to keep
+    def one_item_then_interrupted(self, executor, workers):
+        self.manifest.rows[self.order[0]] = {"source": "a", "target": "b", "status": "failed",
+                                             "reason": "no"}
+        self.manifest.save(self.order)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(batch._Runner, "run", one_item_then_interrupted)
+    other = tmp_path / "other"
+    with pytest.raises(KeyboardInterrupt):
+        amplify(str(collection), str(other), pairs="all", workers=1, method="scale")
+    assert len(manifest_of(other)["items"]) == 1
+
+
+def test_a_failed_clean_up_never_hides_the_run_s_own_error(flattening, tmp_path):
+    collection, _, _ = flattening
+    (tmp_path / "afile").write_text("not a folder")
+    result = cagekit("amplify", collection, "-o", tmp_path / "afile" / "out", "--pairs",
+                     "all", "--method", "scale")
+    assert_bad_input(result, "afile is not a folder")

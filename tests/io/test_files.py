@@ -142,3 +142,19 @@ def test_all_or_nothing_keeps_the_outputs_of_a_block_that_completes_or_exits(tmp
                 _written(tmp_path / "inner.txt", "i")
             raise RuntimeError
     assert not (tmp_path / "inner.txt").exists()
+
+
+def test_missing_folders_are_those_the_system_would_make(tmp_path):
+    from cagekit.io.files import missing_folders
+
+    (tmp_path / "d" / "sub").mkdir(parents=True)
+    os.symlink(tmp_path / "d" / "sub", tmp_path / "link")
+    assert missing_folders(tmp_path / "d") == []
+    assert missing_folders(tmp_path / "a" / "b") == [str(tmp_path / "a" / "b"),
+                                                     str(tmp_path / "a")]
+    # "link/../out" is d/out to the system, not tmp_path/out as the text reads
+    assert missing_folders(tmp_path / "link" / ".." / "out") == [
+        os.path.realpath(tmp_path / "d" / "out")]
+    with cfiles.output_folder(tmp_path / "link" / ".." / "out"):
+        pass
+    assert (tmp_path / "d" / "out").is_dir() and not (tmp_path / "out").exists()

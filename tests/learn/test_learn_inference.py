@@ -250,6 +250,29 @@ def test_an_interrupted_train_without_a_checkpoint_leaves_no_run_folder(tmp_path
     code, _, _ = _cli([*args, "--max-steps", "2"], capsys)
     assert code == 130
     assert (tmp_path / "runs" / "r" / "checkpoint.pt").read_bytes() == b"kept"
+    # a folder that was there before keeps what the run wrote (its log)
+    (tmp_path / "there").mkdir()
+    there = ["train", "synthetic:vases:4", "-o", str(tmp_path / "there")]
+    monkeypatch.setattr(training, "train", lambda config, **kw: (
+        (tmp_path / "there" / "log.csv").write_text("step\n"), _interrupt()))
+    assert _cli(there, capsys)[0] == 130 and (tmp_path / "there" / "log.csv").exists()
+
+    # what another run wrote meanwhile into a parent this run made is never removed
+    def beside(config, resume=False, progress=False):
+        (tmp_path / "new" / "b").mkdir()
+        (tmp_path / "new" / "b" / "checkpoint.pt").write_bytes(b"other run")
+        (tmp_path / "new" / "a" / "log.csv").write_text("step\n")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(training, "train", beside)
+    assert _cli(["train", "synthetic:vases:4", "-o", str(tmp_path / "new" / "a")],
+                capsys)[0] == 130
+    assert not (tmp_path / "new" / "a").exists()
+    assert (tmp_path / "new" / "b" / "checkpoint.pt").read_bytes() == b"other run"
+
+
+def _interrupt():
+    raise KeyboardInterrupt
 
 
 def test_train_says_which_batch_size_a_small_collection_allows(tmp_path, capsys):
