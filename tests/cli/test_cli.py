@@ -298,11 +298,12 @@ def test_render_png(tmp_path, applied):
     img = imread(png)
     assert img.shape[:2] == (180, 400)
     assert img[..., :3].std() > 0.05
-    result = cagekit("render", SHAPE, "-o", tmp_path / "one.png", "--view", "20,-60",
+    result = cagekit("render", SHAPE, SHAPE, "-o", tmp_path / "two.png", "--view", "20,-60",
                      "--view", "90,0", "--size", "100x90", "--json")
     assert result.returncode == 0, result.stderr
-    assert json.loads(result.stdout) == {"output": str(tmp_path / "one.png"), "panels": 1,
-                                         "rows": 2, "width": 100, "height": 180}
+    assert json.loads(result.stdout) == {"output": str(tmp_path / "two.png"), "panels": 2,
+                                         "rows": 2, "width": 200, "height": 180}
+    assert imread(tmp_path / "two.png").shape[:2] == (180, 200)
 
 
 def test_every_command_has_help_and_json():
