@@ -74,6 +74,7 @@ from cagekit.io.files import (
     one_line,
     output_folder,
     read_text,
+    remove_empty_folders,
 )
 from cagekit.metrics import evaluate
 from cagekit.typed import Faces, Vertices
@@ -703,9 +704,7 @@ def _unmake_if_nothing_done(out_dir: str, made: list[str]) -> None:
         for name in ("manifest.json", "manifest.csv"):
             with contextlib.suppress(OSError):
                 os.remove(os.path.join(out_dir, name))
-        for folder in subfolders + made:
-            with contextlib.suppress(OSError):
-                os.rmdir(folder)  # only when empty: a stray file keeps it
+        remove_empty_folders(subfolders + made)  # a stray file keeps its folder
     except Exception:  # noqa: BLE001 - the run's own error is the one to report
         return
 

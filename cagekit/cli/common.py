@@ -277,11 +277,10 @@ def _one_line_warnings(prog: str, debug: bool):
                 text = one_line(message)
                 if not issubclass(category, CagekitWarning):
                     text = f"{text} ({_package_of(filename)} {category.__name__})"
-                where = _CURRENT.get("command", prog)
-                if f"{where}: {text}" in shown:
-                    return
-                shown.add(f"{where}: {text}")
-                click.echo(f"{where}: warning: {text}", err=True)
+                line = f"{_CURRENT.get('command', prog)}: warning: {text}"
+                if line not in shown:
+                    shown.add(line)
+                    click.echo(line, err=True)
 
             warnings.showwarning = show
         yield

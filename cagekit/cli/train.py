@@ -189,6 +189,7 @@ def _unmake_if_no_checkpoint(run_dir: str, made: list[str]) -> None:
     run's own error."""
     import shutil
 
+    from cagekit.io.files import remove_empty_folders
     from cagekit_learn.checkpoint import CHECKPOINT_NAME
     from cagekit_learn.train import LOG_NAME
 
@@ -199,9 +200,7 @@ def _unmake_if_no_checkpoint(run_dir: str, made: list[str]) -> None:
         with contextlib.suppress(FileNotFoundError):
             os.remove(os.path.join(run_dir, LOG_NAME))
         shutil.rmtree(os.path.join(run_dir, "tensorboard"), ignore_errors=True)
-        for folder in made:
-            with contextlib.suppress(OSError):
-                os.rmdir(folder)  # only when empty: another run's files keep it
+        remove_empty_folders(made)  # another run's files keep their folder
     except Exception:  # noqa: BLE001 - the run's own error is the one to report
         return
 

@@ -19,7 +19,7 @@ from cagekit.errors import InputError
 
 __all__ = ["all_or_nothing", "atomic_output", "check_file", "distinct_tails", "extension",
            "keep_outputs_as_written", "missing_folders", "one_line", "output_folder",
-           "read_bytes", "read_text"]
+           "read_bytes", "read_text", "remove_empty_folders"]
 
 
 def extension(path: str | os.PathLike) -> str:
@@ -113,6 +113,19 @@ def missing_folders(path: str | os.PathLike) -> list[str]:
     return missing
 
 
+def remove_empty_folders(folders: Sequence[str]) -> None:
+    """Remove each folder, in the order given (deepest first), that is empty by then; a
+    folder that holds anything, or cannot be removed, stays.
+
+    Examples
+    --------
+    >>> remove_empty_folders([])
+    """
+    for folder in folders:
+        with contextlib.suppress(OSError):
+            os.rmdir(folder)
+
+
 @contextlib.contextmanager
 def output_folder(path: str | os.PathLike) -> Iterator[str]:
     """Make a folder for a command's outputs; if the block fails, remove what it made.
@@ -155,9 +168,7 @@ def output_folder(path: str | os.PathLike) -> Iterator[str]:
     try:
         yield target
     except BaseException:
-        for folder in missing:  # deepest first
-            with contextlib.suppress(OSError):
-                os.rmdir(folder)
+        remove_empty_folders(missing)
         raise
 
 
